@@ -1,0 +1,1 @@
+"""MCAP recorder (rosbag2 layout), player, info, check and plot."""

@@ -1,0 +1,1 @@
+"""Node: fixed-rate digital PID per AMB axis."""

@@ -1,0 +1,305 @@
+"""Rotor configuration: YAML -> frozen, validated dataclasses, with dotted overrides.
+
+Every field carries its unit and allowed range in its metadata; unknown keys are an error that names the
+key and the file.  ``load_config(path, overrides=["controller.rate_hz=5000"])`` is the one entry point.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import types
+import typing
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from .errors import ConfigError
+
+SEED_CONFIG_NAME = "seed_rotor.yaml"
+_FLOAT_RE = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
+def _f(
+    unit: str = "",
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    open_lo: bool = False,
+    choices: tuple | None = None,
+    default: Any = dataclasses.MISSING,
+    doc: str = "",
+):
+    """A dataclass field with unit, range and choices for validation."""
+    meta = {"unit": unit, "lo": lo, "hi": hi, "open_lo": open_lo, "choices": choices, "doc": doc}
+    if default is dataclasses.MISSING:
+        return field(metadata=meta)
+    if isinstance(default, list | dict):
+        return field(default_factory=lambda: default, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class ShaftConfig:
+    length: float = _f("m", 0.0, open_lo=True)
+    diameter: float = _f("m", 0.0, open_lo=True)
+    elements: int = _f("", 1, 400)
+    youngs_modulus: float = _f("Pa", 0.0, open_lo=True)
+    density: float = _f("kg/m^3", 0.0, open_lo=True)
+    shear_modulus: float = _f("Pa", 0.0, open_lo=True, default=81.2e9)
+    model: str = _f(choices=("euler_bernoulli", "timoshenko"), default="euler_bernoulli")
+    rotary_inertia: bool = _f(default=True, doc="Rayleigh beam (rotary inertia and gyroscopics)")
+
+
+@dataclass(frozen=True)
+class DiskConfig:
+    node: int = _f("", 1)
+    diameter: float = _f("m", 0.0, open_lo=True)
+    thickness: float = _f("m", 0.0, open_lo=True)
+    bore: float = _f("m", 0.0, default=0.0, doc="inner diameter of an annular disk")
+
+
+@dataclass(frozen=True)
+class BearingConfig:
+    nodes: tuple[int, ...] = _f("", 1)
+    current_stiffness: float = _f("N/A", 0.0, open_lo=True)
+    displacement_stiffness: float = _f("N/m")
+    bias_current: float = _f("A", 0.0, default=5.0)
+    air_gap: float = _f("m", 0.0, open_lo=True, default=2.5e-3)
+    pole_area: float = _f("m^2", 0.0, default=5.0e-4)
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    rate_hz: float = _f("Hz", 1.0, 1.0e6)
+    proportional_gain: float = _f("A/m", 0.0)
+    derivative_gain: float = _f("A s/m", 0.0)
+    integral_gain: float = _f("A/(m s)", 0.0, default=0.0)
+    derivative_filter_hz: float | None = _f("Hz", 0.0, open_lo=True, default=None)
+    current_limit: float = _f("A", 0.0, open_lo=True, default=10.0)
+    delay_samples: int = _f("", 0, 1, default=0)
+
+
+@dataclass(frozen=True)
+class HarmonicConfig:
+    axis: str = _f(choices=("roll", "pitch", "yaw"))
+    amplitude: float = _f("rad", 0.0, 1.5)
+    frequency: float = _f("rad/s", 0.0)
+    phase: float = _f("rad", default=0.0)
+
+
+@dataclass(frozen=True)
+class BaseMotionConfig:
+    kind: str = _f(choices=("none", "roll", "pitch", "yaw", "combined"), default="none")
+    amplitude: float = _f("rad", 0.0, 1.5, default=0.0)
+    frequency: float = _f("rad/s", 0.0, default=0.0)
+    harmonics: tuple[HarmonicConfig, ...] = _f(default=(), doc="kind: combined only")
+
+
+@dataclass(frozen=True)
+class RotorConfig:
+    shaft: ShaftConfig
+    disks: tuple[DiskConfig, ...]
+    bearings: BearingConfig
+    controller: ControllerConfig
+    spin_speed_rpm: float = _f("rpm", default=1000.0)
+    formulation: str = _f(choices=("derived", "seed"), default="derived")
+    drive_model: str = _f(choices=("body_axis", "cardan"), default="body_axis")
+    seed_disk_H: str = _f(choices=("literal", "consistent"), default="literal")
+    axial_stiffening: bool = _f(default=False)
+    modal_cutoff: float | None = _f("rad/s", 0.0, open_lo=True, default=None)
+    base_motion: BaseMotionConfig = field(default_factory=BaseMotionConfig)
+    source: str = field(default="<memory>", compare=False, metadata={"internal": True})
+
+    @property
+    def n_nodes(self) -> int:
+        return self.shaft.elements + 1
+
+    @property
+    def spin_rad_s(self) -> float:
+        """Spin relative to the base, phi_dot (rad/s)."""
+        return self.spin_speed_rpm * math.pi / 30.0
+
+
+def seed_config_path() -> Path:
+    """Path of the packaged seed rotor (a link to config/seed_rotor.yaml in the repository)."""
+    return Path(str(resources.files("amb_dynamics") / "data" / SEED_CONFIG_NAME))
+
+
+def load_config(path: str | Path | None = None, overrides: list[str] | tuple[str, ...] = ()) -> RotorConfig:
+    """Read, override and validate a rotor file; raises ConfigError with one clear line."""
+    path = Path(path) if path is not None else seed_config_path()
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read config ({exc.strerror})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" line {mark.line + 1}" if mark else ""
+        raise ConfigError(f"{path}:{where} is not valid YAML ({getattr(exc, 'problem', exc)})") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: top level must be a mapping of keys")
+    for item in overrides:
+        apply_override(data, item, str(path))
+    return config_from_dict(data, str(path))
+
+
+def config_from_dict(data: dict, source: str = "<memory>") -> RotorConfig:
+    cfg = _build(RotorConfig, data, "", source)
+    cfg = dataclasses.replace(cfg, source=source)
+    _check_topology(cfg, source)
+    return cfg
+
+
+def apply_override(data: dict, item: str, source: str = "<override>") -> None:
+    """Apply ``a.b.c=value`` (value parsed as YAML) to a nested dict in place."""
+    key, sep, raw = item.partition("=")
+    if not sep or not key.strip():
+        raise ConfigError(f"--set {item!r}: expected key=value, e.g. controller.rate_hz=5000")
+    try:
+        value = yaml.safe_load(raw) if raw.strip() else None
+    except yaml.YAMLError:
+        raise ConfigError(f"--set {item!r}: value is not valid YAML") from None
+    parts = key.strip().split(".")
+    node: Any = data
+    for i, part in enumerate(parts[:-1]):
+        if isinstance(node, list):
+            node = _list_item(node, part, parts[: i + 1], source)
+            continue
+        if part not in node or node[part] is None:
+            node[part] = {}
+        node = node[part]
+        if not isinstance(node, dict | list):
+            raise ConfigError(f"--set {key}: {'.'.join(parts[: i + 1])} is not a mapping")
+    last = parts[-1]
+    if isinstance(node, list):
+        idx = _index(last, parts, source)
+        if idx >= len(node):
+            raise ConfigError(f"--set {key}: index {idx} out of range")
+        node[idx] = value
+    else:
+        node[last] = value
+
+
+def _index(part: str, parts: list[str], source: str) -> int:
+    if not part.isdigit():
+        raise ConfigError(f"{source}: --set {'.'.join(parts)}: '{part}' must be a list index")
+    return int(part)
+
+
+def _list_item(node: list, part: str, parts: list[str], source: str) -> Any:
+    idx = _index(part, parts, source)
+    if idx >= len(node):
+        raise ConfigError(f"{source}: --set {'.'.join(parts)}: index {idx} out of range")
+    return node[idx]
+
+
+def to_dict(cfg: Any) -> Any:
+    """Plain-data view (for JSON output and parameter defaults)."""
+    if dataclasses.is_dataclass(cfg):
+        return {
+            f.name: to_dict(getattr(cfg, f.name)) for f in dataclasses.fields(cfg) if not f.metadata.get("internal")
+        }
+    if isinstance(cfg, tuple | list):
+        return [to_dict(v) for v in cfg]
+    return cfg
+
+
+def _build(cls: type, data: Any, prefix: str, source: str):
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: {prefix.rstrip('.') or 'top level'} must be a mapping")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if not f.metadata.get("internal")}
+    unknown = sorted(set(data) - set(fields))
+    if unknown:
+        raise ConfigError(f"{source}: unknown key '{prefix}{unknown[0]}' (allowed: {', '.join(sorted(fields))})")
+    kwargs = {}
+    for name, f in fields.items():
+        key = prefix + name
+        if name not in data:
+            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+                raise ConfigError(f"{source}: missing key '{key}'")
+            continue
+        kwargs[name] = _convert(hints[name], data[name], f.metadata, key, source)
+    return cls(**kwargs)
+
+
+def _convert(tp: Any, value: Any, meta: dict, key: str, source: str):
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if value is None:
+            return None
+        tp, origin = args[0], typing.get_origin(args[0])
+    if dataclasses.is_dataclass(tp):
+        return _build(tp, value, key + ".", source)
+    if origin is tuple:
+        item_tp = typing.get_args(tp)[0]
+        if not isinstance(value, list | tuple):
+            raise ConfigError(f"{source}: '{key}' must be a list")
+        items = [_convert(item_tp, v, meta, f"{key}[{i}]", source) for i, v in enumerate(value)]
+        if meta.get("lo") is not None and item_tp is int and not items:
+            raise ConfigError(f"{source}: '{key}' must not be empty")
+        return tuple(items)
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{source}: '{key}' must be true or false (got {value!r})")
+        return value
+    if tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{source}: '{key}' must be a string (got {value!r})")
+        choices = meta.get("choices")
+        if choices and value not in choices:
+            raise ConfigError(f"{source}: '{key}' must be one of {', '.join(choices)} (got {value!r})")
+        return value
+    if tp in (int, float):
+        if isinstance(value, str) and _FLOAT_RE.fullmatch(value.strip()):
+            value = float(value)  # PyYAML (YAML 1.1) reads 211.0e9 as a string
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ConfigError(f"{source}: '{key}' must be a number (got {value!r})")
+        if tp is int and (not isinstance(value, int) and not float(value).is_integer()):
+            raise ConfigError(f"{source}: '{key}' must be an integer (got {value!r})")
+        value = tp(value)
+        if not math.isfinite(value):
+            raise ConfigError(f"{source}: '{key}' must be finite (got {value!r})")
+        _check_range(value, meta, key, source)
+        return value
+    raise ConfigError(f"{source}: '{key}': unsupported type {tp}")  # pragma: no cover
+
+
+def _check_range(value: float, meta: dict, key: str, source: str) -> None:
+    lo, hi, unit = meta.get("lo"), meta.get("hi"), meta.get("unit", "")
+    unit = f" {unit}" if unit else ""
+    if lo is not None and (value < lo or (meta.get("open_lo") and value <= lo)):
+        op = ">" if meta.get("open_lo") else ">="
+        raise ConfigError(f"{source}: '{key}' must be {op} {lo:g}{unit} (got {value:g})")
+    if hi is not None and value > hi:
+        raise ConfigError(f"{source}: '{key}' must be <= {hi:g}{unit} (got {value:g})")
+
+
+def _check_topology(cfg: RotorConfig, source: str) -> None:
+    n = cfg.n_nodes
+    for i, disk in enumerate(cfg.disks):
+        if disk.node > n:
+            raise ConfigError(f"{source}: 'disks[{i}].node' = {disk.node} does not exist (the shaft has nodes 1..{n})")
+        if disk.bore >= disk.diameter:
+            raise ConfigError(f"{source}: 'disks[{i}].bore' must be smaller than its diameter")
+    nodes = cfg.bearings.nodes
+    if len(nodes) != 2:
+        raise ConfigError(f"{source}: 'bearings.nodes' must list exactly 2 AMB nodes (got {len(nodes)})")
+    for node in nodes:
+        if node > n:
+            raise ConfigError(f"{source}: bearing node {node} does not exist (nodes 1..{n})")
+    if len(set(nodes)) != len(nodes):
+        raise ConfigError(f"{source}: 'bearings.nodes' must be distinct")
+    bm = cfg.base_motion
+    if bm.kind == "combined" and not bm.harmonics:
+        raise ConfigError(f"{source}: 'base_motion.harmonics' must list at least one harmonic for kind combined")
+    if bm.kind in ("roll", "pitch", "yaw") and bm.amplitude > 0 and bm.frequency <= 0:
+        raise ConfigError(f"{source}: 'base_motion.frequency' must be > 0 rad/s for a moving base")

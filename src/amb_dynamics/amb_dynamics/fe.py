@@ -1,0 +1,294 @@
+"""Finite-element matrices of the rotor in the moving base frame (PHYSICS.md sections 4.1-4.8).
+
+Node DOFs are [v, w, theta_y, theta_z] with theta_y = -w', theta_z = +v'.  Element integrals use
+4-point Gauss-Legendre quadrature, exact for the cubic (Euler-Bernoulli or Timoshenko) shape functions.
+Every matrix is returned for both formulations: ``derived`` (default) and ``seed`` (the paper's print).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import DiskConfig, RotorConfig
+
+J2 = np.array([[0.0, -1.0], [1.0, 0.0]])
+S2 = np.array([[0.0, 1.0], [1.0, 0.0]])
+E11 = np.diag([1.0, 0.0])
+E22 = np.diag([0.0, 1.0])
+UPPER = np.array([[0.0, 1.0], [0.0, 0.0]])  # [[0,1],[0,0]]: H1 (derived, cardan)
+LOWER = np.array([[0.0, 0.0], [1.0, 0.0]])  # [[0,0],[1,0]]: Hs (seed, as printed)
+GAUSS_POINTS = 4
+DOF_NAMES = ("v", "w", "ty", "tz")
+
+
+@dataclass(frozen=True)
+class Section:
+    """Uniform shaft section properties per unit length."""
+
+    rho_A: float  # mass per length (kg/m)
+    i_d: float  # diametral inertia per length, rho*I (kg m)
+    i_p: float  # polar inertia per length, 2 rho*I (kg m)
+    EI: float  # bending stiffness (N m^2)
+    kGA: float  # shear stiffness kappa*G*A (N); inf for Euler-Bernoulli
+    length: float  # element length Le (m)
+
+
+def section_of(cfg: RotorConfig) -> Section:
+    s = cfg.shaft
+    area = np.pi * s.diameter**2 / 4.0
+    inertia = np.pi * s.diameter**4 / 64.0
+    rot = 1.0 if s.rotary_inertia else 0.0
+    if s.model == "timoshenko":
+        nu = s.youngs_modulus / (2.0 * s.shear_modulus) - 1.0
+        kappa = 6.0 * (1.0 + nu) / (7.0 + 6.0 * nu)
+        kGA = kappa * s.shear_modulus * area
+    else:
+        kGA = np.inf
+    return Section(
+        rho_A=s.density * area,
+        i_d=rot * s.density * inertia,
+        i_p=rot * 2 * s.density * inertia,
+        EI=s.youngs_modulus * inertia,
+        kGA=kGA,
+        length=s.length / s.elements,
+    )
+
+
+def shape_functions(xi: float, Le: float, phi_s: float = 0.0):
+    """psi (2x8), psi' (2x8), psi_theta (2x8), psi_theta' (2x8) at xi = s/Le.
+
+    phi_s = 12 EI/(kappa G A Le^2) selects Timoshenko (0: Euler-Bernoulli, psi_theta = J psi').
+    """
+    d = 1.0 + phi_s
+    x2, x3 = xi * xi, xi**3
+    N = (
+        np.array(
+            [
+                1 - 3 * x2 + 2 * x3 + phi_s * (1 - xi),
+                Le * (xi - 2 * x2 + x3 + phi_s * (xi - x2) / 2),
+                3 * x2 - 2 * x3 + phi_s * xi,
+                Le * (-x2 + x3 - phi_s * (xi - x2) / 2),
+            ]
+        )
+        / d
+    )
+    dN = np.array(
+        [
+            -6 * xi + 6 * x2 - phi_s,
+            Le * (1 - 4 * xi + 3 * x2 + phi_s * (1 - 2 * xi) / 2),
+            6 * xi - 6 * x2 + phi_s,
+            Le * (-2 * xi + 3 * x2 - phi_s * (1 - 2 * xi) / 2),
+        ]
+    ) / (d * Le)
+    P = (
+        np.array(
+            [
+                6 * (x2 - xi) / Le,
+                1 - 4 * xi + 3 * x2 + phi_s * (1 - xi),
+                -6 * (x2 - xi) / Le,
+                -2 * xi + 3 * x2 + phi_s * xi,
+            ]
+        )
+        / d
+    )
+    dP = np.array([6 * (2 * xi - 1) / Le, -4 + 6 * xi - phi_s, -6 * (2 * xi - 1) / Le, -2 + 6 * xi + phi_s]) / (d * Le)
+    return _rows(N), _rows(dN), _theta_rows(P), _theta_rows(dP)
+
+
+def _rows(N: np.ndarray) -> np.ndarray:
+    """psi from the four shape functions: row v = [N1,0,0,N2,N3,0,0,N4], row w with w' = -theta_y."""
+    psi = np.zeros((2, 8))
+    psi[0, [0, 3, 4, 7]] = N
+    psi[1, [1, 2, 5, 6]] = [N[0], -N[1], N[2], -N[3]]
+    return psi
+
+
+def _theta_rows(P: np.ndarray) -> np.ndarray:
+    """psi_theta in the places and signs of J psi': row theta_y, row theta_z."""
+    pt = np.zeros((2, 8))
+    pt[0, [1, 2, 5, 6]] = [-P[0], P[1], -P[2], P[3]]
+    pt[1, [0, 3, 4, 7]] = P
+    return pt
+
+
+def element_matrices(sec: Section) -> dict[str, np.ndarray]:
+    """All 8x8 element matrices (derived and seed), by Gauss-Legendre quadrature."""
+    Le = sec.length
+    phi_s = 0.0 if np.isinf(sec.kGA) else 12.0 * sec.EI / (sec.kGA * Le**2)
+    xg, wg = np.polynomial.legendre.leggauss(GAUSS_POINTS)
+    out: dict[str, np.ndarray] = {}
+
+    def acc(name: str, value: np.ndarray) -> None:
+        out[name] = out.get(name, 0.0) + value
+
+    ra, i_d, i_p = sec.rho_A, sec.i_d, sec.i_p
+    for x, w in zip((xg + 1) / 2, wg * Le / 2, strict=True):
+        psi, dpsi, pt, dpt = shape_functions(x, Le, phi_s)
+        gamma = dpsi - J2.T @ pt
+        s = x * Le
+        acc("Mt", w * ra * psi.T @ psi)
+        acc("Mr", w * i_d * pt.T @ pt)
+        acc("K_B", w * sec.EI * dpt.T @ dpt)
+        if phi_s:
+            acc("K_B", w * sec.kGA * gamma.T @ gamma)
+        acc("G", -w * i_p * pt.T @ J2 @ pt)
+        acc("C", w * (ra * psi.T @ J2 @ psi + i_d * pt.T @ J2 @ pt))
+        acc("P", w * i_p * pt.T @ pt)
+        acc("Kp11", w * (ra * psi.T @ E11 @ psi + (i_p - i_d) * pt.T @ E11 @ pt))
+        acc("Kp22", w * (ra * psi.T @ E22 @ psi + (i_p - i_d) * pt.T @ E22 @ pt))
+        acc("Kp12", w * (ra * psi.T @ S2 @ psi + (i_p - i_d) * pt.T @ S2 @ pt))
+        acc("H1", w * i_p * pt.T @ UPPER @ pt)
+        # seed formulation: shaft rotary terms in slopes psi'
+        acc("Gs", w * i_p * dpsi.T @ J2 @ dpsi)
+        acc("Kp11s", w * (ra * psi.T @ E11 @ psi + i_p * dpsi.T @ E22 @ dpsi))
+        acc("Kp22s", w * (ra * psi.T @ E22 @ psi + i_p * dpsi.T @ E11 @ dpsi))
+        acc("Kp12s", w * (ra * psi.T @ S2 @ psi + (i_p - i_d) * dpsi.T @ S2 @ dpsi))
+        acc("Hs", w * i_p * dpsi.T @ LOWER @ dpsi)
+        # geometric stiffness shape integrals for n(x) = a0 + a2 x^2 (per unit Omega^2), local s
+        acc("KG_s0", w * dpsi.T @ dpsi)
+        acc("KG_s1", w * s * dpsi.T @ dpsi)
+        acc("KG_s2", w * s * s * dpsi.T @ dpsi)
+        # forcing shape vectors: columns (v, w, theta_y, theta_z) integrated with 1 and s
+        acc("F0", w * np.vstack([psi, pt]).T)
+        acc("F1", w * s * np.vstack([psi, pt]).T)
+    out["M"] = out["Mt"] + out["Mr"]
+    return out
+
+
+@dataclass(frozen=True)
+class DiskProps:
+    node: int  # 1-based node
+    m: float  # kg
+    Ip: float  # kg m^2
+    Id: float  # kg m^2
+
+
+def disk_props(disk: DiskConfig, density: float) -> DiskProps:
+    D, d, t = disk.diameter, disk.bore, disk.thickness
+    m = density * np.pi * (D**2 - d**2) * t / 4.0
+    Ip = m * (D**2 + d**2) / 8.0
+    Id = Ip / 2.0 + m * t**2 / 12.0
+    return DiskProps(disk.node, m, Ip, Id)
+
+
+def disk_matrices(dp: DiskProps, seed_disk_H: str = "literal") -> dict[str, np.ndarray]:
+    """4x4 disk matrices on [v, w, theta_y, theta_z] (PHYSICS.md 4.3 and 4.5)."""
+    m, Ip, Id = dp.m, dp.Ip, dp.Id
+    z2 = np.zeros((2, 2))
+
+    def blk(a, b):
+        return np.block([[a, z2], [z2, b]])
+
+    hs = Ip * LOWER if seed_disk_H == "literal" else -Ip * UPPER
+    return {
+        "M": np.diag([m, m, Id, Id]),
+        "Mt": np.diag([m, m, 0.0, 0.0]),
+        "Mr": np.diag([0.0, 0.0, Id, Id]),
+        "K_B": np.zeros((4, 4)),
+        "G": blk(z2, -Ip * J2),
+        "C": blk(m * J2, Id * J2),
+        "P": np.diag([0.0, 0.0, Ip, Ip]),
+        "Kp11": np.diag([m, 0.0, Ip - Id, 0.0]),
+        "Kp22": np.diag([0.0, m, 0.0, Ip - Id]),
+        "Kp12": blk(m * S2, (Ip - Id) * S2),
+        "H1": blk(z2, Ip * UPPER),
+        "Gs": blk(z2, Ip * J2),
+        "Kp11s": np.diag([m, 0.0, Ip, 0.0]),
+        "Kp22s": np.diag([0.0, m, 0.0, Ip]),
+        "Kp12s": blk(m * S2, (Ip - Id) * S2),
+        "Hs": blk(z2, hs),
+    }
+
+
+MATRIX_NAMES = (
+    "M",
+    "Mt",
+    "Mr",
+    "K_B",
+    "G",
+    "C",
+    "P",
+    "Kp11",
+    "Kp22",
+    "Kp12",
+    "H1",
+    "Gs",
+    "Kp11s",
+    "Kp22s",
+    "Kp12s",
+    "Hs",
+)
+
+
+@dataclass(frozen=True)
+class FEModel:
+    """Global constant matrices (n x n, n = 4 * nodes) and forcing shapes of the free rotor.
+
+    ``mats`` holds every name of MATRIX_NAMES plus ``K_G`` (geometric stiffness per unit
+    Omega_y^2 + Omega_z^2); ``forcing`` is (n, 4): the load vectors f1..f4 of PHYSICS.md 4.7 for the
+    coefficients a1 = dOz + Ox*Oy, a2 = dOy - Ox*Oz, a3 = Phi*Oz, a4 = Phi*Oy.
+    """
+
+    mats: dict[str, np.ndarray]
+    forcing: np.ndarray
+    node_x: np.ndarray
+    disks: tuple[DiskProps, ...]
+    section: Section
+
+    @property
+    def n(self) -> int:
+        return self.mats["M"].shape[0]
+
+    def dof_names(self) -> list[str]:
+        return [f"n{k + 1}_{d}" for k in range(len(self.node_x)) for d in DOF_NAMES]
+
+
+def dof_index(node: int, dof: int) -> int:
+    """Global 0-based index of node (1-based) and DOF j (0..3)."""
+    return 4 * (node - 1) + dof
+
+
+def assemble(cfg: RotorConfig) -> FEModel:
+    """Assemble the constant matrices of the shaft and disks (no bearings)."""
+    sec = section_of(cfg)
+    ne, Le = cfg.shaft.elements, sec.length
+    n = 4 * (ne + 1)
+    el = element_matrices(sec)
+    mats = {name: np.zeros((n, n)) for name in (*MATRIX_NAMES, "K_G")}
+    forcing = np.zeros((n, 4))
+    node_x = np.arange(ne + 1) * Le
+    disks = tuple(disk_props(d, cfg.shaft.density) for d in cfg.disks)
+    L = cfg.shaft.length
+    for e in range(ne):
+        idx = slice(4 * e, 4 * e + 8)
+        for name in MATRIX_NAMES:
+            mats[name][idx, idx] += el[name]
+        x0 = node_x[e]
+        # tension per unit (Oy^2 + Oz^2) with the thrust bearing at x = 0 (PHYSICS.md 10):
+        # n(x) = rhoA (L^2 - x^2)/2 + sum of m x_d over disks beyond x; x = x0 + s
+        disk_term = sum(dp.m * node_x[dp.node - 1] for dp in disks if node_x[dp.node - 1] > x0 + 1e-12)
+        a0 = sec.rho_A * (L**2 - x0**2) / 2 + disk_term
+        mats["K_G"][idx, idx] += a0 * el["KG_s0"] - sec.rho_A * x0 * el["KG_s1"] - sec.rho_A / 2 * el["KG_s2"]
+        F0, F1 = el["F0"], el["F1"]  # (8, 4): columns v, w, theta_y, theta_z
+        Fx = x0 * F0 + F1  # integrated with x = x0 + s
+        ra, i_d, i_p = sec.rho_A, sec.i_d, sec.i_p
+        forcing[idx, 0] += -ra * Fx[:, 0] - i_d * F0[:, 3]
+        forcing[idx, 1] += ra * Fx[:, 1] - i_d * F0[:, 2]
+        forcing[idx, 2] += -i_p * F0[:, 2]
+        forcing[idx, 3] += i_p * F0[:, 3]
+    for dp in disks:
+        idx = slice(4 * (dp.node - 1), 4 * dp.node)
+        dm = disk_matrices(dp, cfg.seed_disk_H)
+        for name in MATRIX_NAMES:
+            mats[name][idx, idx] += dm[name]
+        xd = node_x[dp.node - 1]
+        i0 = 4 * (dp.node - 1)
+        forcing[i0 + 0, 0] += -dp.m * xd
+        forcing[i0 + 3, 0] += -dp.Id
+        forcing[i0 + 1, 1] += dp.m * xd
+        forcing[i0 + 2, 1] += -dp.Id
+        forcing[i0 + 2, 2] += -dp.Ip
+        forcing[i0 + 3, 3] += dp.Ip
+    return FEModel(mats=mats, forcing=forcing, node_x=node_x, disks=disks, section=sec)

@@ -1,0 +1,155 @@
+"""The sampled-data closed loop that the node suite runs (PHYSICS.md 3.3).
+
+Between samples the plant is continuous with the current held (zero-order hold) and the base motion held
+at its sample (Omega_k, dOmega_k), exactly as the plant node receives it from /base/imu.  One step is
+
+    xp_{k+1} = E_k xp_k + Gamma_k i_k + g_k,    [[E, Gamma, g], [0, I, 0], [0, 0, 1]] = expm(Ts * Aaug_k)
+
+``PlantStepper`` is the one-step propagator of the plant node; ``SampledLoop`` adds the discrete PID of
+:mod:`amb_dynamics.amb` and gives the step maps F_k (for the monodromy) and the offline simulation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .amb import DiscretePID, DiscretePIDCoefficients, pid_update_matrices
+from .config import RotorConfig
+from .motion import BaseMotion
+from .structure import StructuralModel
+from .system import COEFFICIENTS, coefficients_from_rates, forcing_from_rates, parametric_matrices
+
+CACHE_LIMIT = 4096  # step matrices kept for repeated base samples (a static or periodic base)
+
+
+class PlantStepper:
+    """Exact ZOH propagation of the open-loop plant xp = [q; q'] over one sample period Ts.
+
+    Parameters
+    ----------
+    model : StructuralModel
+    cfg : RotorConfig (formulation, drive model, axial stiffening)
+    Ts : float, sample period (s)
+    forcing : bool, include the base-motion forcing f(t) (PHYSICS.md 4.7)
+    """
+
+    def __init__(self, model: StructuralModel, cfg: RotorConfig, Ts: float, forcing: bool = True):
+        n = model.n
+        self.n, self.Ts, self.model = n, Ts, model
+        self.spin = cfg.spin_rad_s
+        Minv = sla.inv(model.M)
+        Kp = model.mats["K_B"] + model.gains.ks * model.Ba @ model.Ba.T  # negative stiffness, not sampled
+        self.Ap0 = np.zeros((2 * n, 2 * n))
+        self.Ap0[:n, n:] = np.eye(n)
+        self.Ap0[n:, :n] = -Minv @ Kp
+        self.Ap_terms = []
+        for name, (Kj, Dj) in parametric_matrices(model, cfg).items():
+            if Kj.any() or Dj.any():
+                Aj = np.zeros((2 * n, 2 * n))
+                Aj[n:, :n], Aj[n:, n:] = -Minv @ Kj, -Minv @ Dj
+                self.Ap_terms.append((COEFFICIENTS.index(name), Aj))
+        self.Bp = np.zeros((2 * n, 4))
+        self.Bp[n:] = Minv @ model.Ba * model.gains.ki
+        self.Bf = np.zeros((2 * n, 4))
+        if forcing:
+            self.Bf[n:] = Minv @ model.forcing
+        self._cache: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def matrices(self, Omega: np.ndarray, dOmega: np.ndarray):
+        """(E, Gamma, g) for base rates held at (Omega, dOmega) over the step."""
+        key = np.concatenate([Omega, dOmega]).tobytes()
+        hit = self._cache.get(key)
+        if hit is not None:
+            return hit
+        c = coefficients_from_rates(np.asarray(Omega, float), np.asarray(dOmega, float), self.spin)
+        a = forcing_from_rates(np.asarray(Omega, float), np.asarray(dOmega, float), self.spin)
+        n2 = 2 * self.n
+        aug = np.zeros((n2 + 5, n2 + 5))
+        aug[:n2, :n2] = self.Ap0 + sum(c[j] * Aj for j, Aj in self.Ap_terms)
+        aug[:n2, n2 : n2 + 4] = self.Bp
+        aug[:n2, n2 + 4] = self.Bf @ a
+        Phi = sla.expm(self.Ts * aug)
+        out = (Phi[:n2, :n2], Phi[:n2, n2 : n2 + 4], Phi[:n2, n2 + 4])
+        if len(self._cache) < CACHE_LIMIT:
+            self._cache[key] = out
+        return out
+
+    def step(self, xp: np.ndarray, current: np.ndarray, Omega: np.ndarray, dOmega: np.ndarray) -> np.ndarray:
+        E, G, g = self.matrices(Omega, dOmega)
+        return E @ xp + G @ current + g
+
+    def output(self, xp: np.ndarray) -> np.ndarray:
+        """AMB displacements y = Ba^T q (m), channels of model.channels."""
+        return self.model.Ba.T @ xp[: self.n]
+
+
+@dataclass
+class SampledRun:
+    """Offline sampled-data simulation result (k = 0..steps)."""
+
+    t: np.ndarray  # (K+1,) s
+    x: np.ndarray  # (K+1, 2n) plant state at t_k
+    y: np.ndarray  # (K+1, 4) sampled displacement (m)
+    i: np.ndarray  # (K, 4) applied current on [t_k, t_k+1) (A)
+
+
+class SampledLoop:
+    """Plant stepper + discrete PID at rate 1/Ts (ZOH, optional one-sample delay)."""
+
+    def __init__(
+        self,
+        model: StructuralModel,
+        cfg: RotorConfig,
+        Ts: float | None = None,
+        delay_samples: int | None = None,
+        forcing: bool = True,
+    ):
+        self.Ts = Ts if Ts is not None else 1.0 / cfg.controller.rate_hz
+        self.cfg, self.model = cfg, model
+        self.delay = cfg.controller.delay_samples if delay_samples is None else delay_samples
+        self.plant = PlantStepper(model, cfg, self.Ts, forcing=forcing)
+        self.pid_coeffs = DiscretePIDCoefficients.from_gains(model.gains, self.Ts)
+
+    def new_controller(self, current_limit: float | None = None) -> DiscretePID:
+        return DiscretePID(self.pid_coeffs, 4, current_limit, delay=self.delay)
+
+    def simulate(self, motion: BaseMotion, steps: int, x0: np.ndarray) -> SampledRun:
+        """The closed loop exactly as the node suite runs it (lockstep), without saturation."""
+        n2 = 2 * self.model.n
+        t = np.arange(steps + 1) * self.Ts
+        Om, dOm = motion.angular_velocity(t)
+        x = np.empty((steps + 1, n2))
+        y = np.empty((steps + 1, 4))
+        cur = np.empty((steps, 4))
+        x[0] = x0
+        pid = self.new_controller()
+        for k in range(steps):
+            y[k] = self.plant.output(x[k])
+            cur[k] = pid.step(y[k])
+            x[k + 1] = self.plant.step(x[k], cur[k], Om[:, k], dOm[:, k])
+        y[steps] = self.plant.output(x[steps])
+        return SampledRun(t, x, y, cur)
+
+    def step_map(self, Omega: np.ndarray, dOmega: np.ndarray) -> np.ndarray:
+        """F_k on X_k = [xp(t_k); controller memory] (PHYSICS.md 3.3), for rates held over the step."""
+        g = self.model.gains
+        use_int, use_eta = g.kI != 0.0, g.kd != 0.0
+        Py, Pm, Uy, Um, parts = pid_update_matrices(self.pid_coeffs, 4, use_int, use_eta, self.delay > 0)
+        E, Gam, _ = self.plant.matrices(Omega, dOmega)
+        n, n2, nm = self.model.n, 2 * self.model.n, Pm.shape[0]
+        Cy = np.zeros((4, n2))
+        Cy[:, :n] = self.model.Ba.T
+        F = np.zeros((n2 + nm, n2 + nm))
+        if self.delay:
+            j = parts.index("u")
+            F[:n2, :n2] = E
+            F[:n2, n2 + 4 * j : n2 + 4 * j + 4] = Gam
+        else:
+            F[:n2, :n2] = E + Gam @ Uy @ Cy
+            F[:n2, n2:] = Gam @ Um
+        F[n2:, :n2] = Py @ Cy
+        F[n2:, n2:] = Pm
+        return F

@@ -1,0 +1,66 @@
+"""DDS hygiene: every process of the project keeps discovery on localhost (DESIGN.md section 5).
+
+This module imports no ROS code, so it can run before ``rclpy.init``.  ``ensure_localhost_dds()`` is the
+first call of every entry point that may start DDS; ``reserve_domain_id()`` gives a test session or an
+``amb-rig`` run a ROS_DOMAIN_ID that no concurrent run on this machine holds (an exclusive file lock).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import random
+import tempfile
+from pathlib import Path
+
+LOCALHOST = "LOCALHOST"
+DOMAIN_RANGE = range(10, 100)  # ids 0..101 are safe for Fast DDS ports on Linux
+_held_locks: list = []
+
+
+class DdsEnvError(RuntimeError):
+    """The environment asks for DDS discovery beyond this machine."""
+
+
+def ensure_localhost_dds(env: dict | None = None) -> dict:
+    """Set ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST (and a domain id) unless set; refuse other ranges."""
+    env = os.environ if env is None else env
+    current = env.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "")
+    if current and current.upper() != LOCALHOST:
+        raise DdsEnvError(
+            f"ROS_AUTOMATIC_DISCOVERY_RANGE={current} would let DDS discover beyond this machine; "
+            "amb-rig only runs with LOCALHOST"
+        )
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = LOCALHOST
+    env.pop("ROS_STATIC_PEERS", None)
+    if env.get("ROS_LOCALHOST_ONLY", "0") not in ("0", ""):
+        env["ROS_LOCALHOST_ONLY"] = "0"  # deprecated in Jazzy; the range above replaces it
+    if not env.get("ROS_DOMAIN_ID"):
+        env["ROS_DOMAIN_ID"] = str(reserve_domain_id())
+    return env
+
+
+def reserve_domain_id(seed: int | None = None) -> int:
+    """Lock and return a ROS_DOMAIN_ID that no other live process of this project holds."""
+    rng = random.Random(seed if seed is not None else os.getpid() ^ int.from_bytes(os.urandom(4), "little"))
+    ids = list(DOMAIN_RANGE)
+    rng.shuffle(ids)
+    lock_dir = Path(tempfile.gettempdir())
+    for domain in ids:
+        fh = open(lock_dir / f"amb-rig-ros-domain-{domain}.lock", "w")
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.close()
+            continue
+        _held_locks.append(fh)
+        return domain
+    raise DdsEnvError(f"every ROS_DOMAIN_ID in {DOMAIN_RANGE.start}..{DOMAIN_RANGE.stop - 1} is in use")
+
+
+def child_env(base: dict | None = None, **extra: str) -> dict:
+    """Environment for a spawned node: the parent's, localhost DDS, the same domain, plus ``extra``."""
+    env = dict(os.environ if base is None else base)
+    ensure_localhost_dds(env)
+    env.update(extra)
+    return env

@@ -1,0 +1,1 @@
+"""Node: publishes the moving base's attitude, angular velocity and acceleration."""

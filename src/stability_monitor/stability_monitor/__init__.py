@@ -1,0 +1,1 @@
+"""Node and offline CLI: online Floquet multipliers and instability flag."""

@@ -1,0 +1,34 @@
+"""Test session set-up: DDS on localhost only, with a ROS_DOMAIN_ID held by this session alone."""
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+from amb_ros.env import ensure_localhost_dds, reserve_domain_id
+
+# One domain per test session, locked so that concurrent sessions never share it.
+os.environ["ROS_DOMAIN_ID"] = str(reserve_domain_id())
+ensure_localhost_dds()
+
+REPO = Path(__file__).resolve().parents[1]
+VENV_BIN = Path(sys.executable).parent
+
+
+@pytest.fixture(scope="session")
+def repo() -> Path:
+    return REPO
+
+
+@pytest.fixture(scope="session")
+def seed_config_path() -> Path:
+    return REPO / "config" / "seed_rotor.yaml"
+
+
+@pytest.fixture(scope="session")
+def venv_bin() -> Path:
+    return VENV_BIN
