@@ -13,7 +13,7 @@ import scipy.linalg as sla
 
 from .config import RotorConfig
 from .errors import InputError
-from .fe import FEModel, assemble, dof_index
+from .fe import DiskProps, FEModel, assemble, dof_index
 
 AXIS_NAMES = ("y", "z")
 
@@ -122,6 +122,40 @@ def build_structure(cfg: RotorConfig, fe: FEModel | None = None) -> StructuralMo
     if cfg.modal_cutoff is not None:
         model = reduce_modal(model, cfg.modal_cutoff)
     return model
+
+
+def rigid_disk_model(
+    m: float,
+    Id: float,
+    Ip: float,
+    K_B: np.ndarray,
+    c: float = 0.0,
+    cfg: RotorConfig | None = None,
+) -> StructuralModel:
+    """A one-node rotor (rigid disk on base-fixed springs, PHYSICS.md 8.1) through the production assembly.
+
+    K_B : (4, 4) stiffness on [v, w, theta_y, theta_z] (N/m, N m/rad); c : base-fixed damping on v, w (N s/m).
+    The damper enters as an ideal-derivative 'bearing' on v and w (ki kd = c, ki kp + ks = 0).
+    """
+    from .fe import FEModel, Section, disk_matrices  # local: only this test-scale model needs them
+
+    dp = DiskProps(1, m, Ip, Id)
+    dm = disk_matrices(dp, cfg.seed_disk_H if cfg is not None else "literal")
+    mats = {k: np.array(v, dtype=float) for k, v in dm.items()}
+    mats["K_B"] = np.array(K_B, dtype=float)
+    mats["K_G"] = np.zeros((4, 4))
+    fe = FEModel(
+        mats=mats,
+        forcing=np.zeros((4, 4)),
+        node_x=np.zeros(1),
+        disks=(dp,),
+        section=Section(0.0, 0.0, 0.0, 0.0, np.inf, 0.0),
+    )
+    gains = AMBGains(ki=1.0, ks=0.0, kp=0.0, kI=0.0, kd=float(c), omega_f=None)
+    Ba = selection_matrix(4, (1,))
+    return StructuralModel(
+        dict(mats), Ba, fe.forcing.copy(), gains, channel_names((1,)), fe, None, tuple(fe.dof_names())
+    )
 
 
 def reduce_modal(model: StructuralModel, cutoff: float) -> StructuralModel:

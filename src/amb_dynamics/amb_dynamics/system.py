@@ -107,7 +107,8 @@ def closed_loop(model: StructuralModel, cfg: RotorConfig) -> ClosedLoop:
     Minv = sla.inv(M)  # n <= a few hundred; M is factored once here, never in a loop
     use_int = g.kI != 0.0
     use_filt = g.omega_f is not None
-    ne, nf = (4 if use_int else 0), (4 if use_filt else 0)
+    na = Ba.shape[1]  # AMB axes
+    ne, nf = (na if use_int else 0), (na if use_filt else 0)
     N = 2 * n + ne + nf
     Ky = g.ki * g.kp + g.ks + (g.ki * g.kd * g.omega_f if use_filt else 0.0)
     Dy = 0.0 if use_filt else g.ki * g.kd
