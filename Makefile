@@ -14,6 +14,7 @@ export ROS_LOCALHOST_ONLY := 0
 export AMENT_PREFIX_PATH := $(CURDIR)/$(VENV)
 export MPLBACKEND := Agg
 export PYTHONDONTWRITEBYTECODE := 1
+export OPENBLAS_NUM_THREADS ?= 1
 
 PKGS := amb_dynamics amb_ros base_motion amb_plant amb_controller stability_monitor amb_bag amb_bringup
 PKG_SETUPS := $(foreach p,$(PKGS),src/$(p)/setup.py)

@@ -196,14 +196,26 @@ def sampled_floquet(
     return FloquetResult(period, sort_multipliers(mu), f"sampled-product(p={p},r={r})", p, notes=notes)
 
 
-def lyapunov_exponent(step_maps, n_steps: int, dt: float, k: int | None = None) -> float:
-    """Largest Lyapunov exponent (1/s) from QR-orthonormalised products of the maps ``step_maps(j)``."""
+def lyapunov_exponent(step_maps, n_steps: int, dt: float, burn_in: int = 0) -> float:
+    """Largest Lyapunov exponent (1/s) from QR-orthonormalised products of the maps ``step_maps(j)``.
+
+    The first ``burn_in`` steps only align the basis: transient (non-normal) growth is not counted.
+    """
     Q = None
     total = 0.0
     for j in range(n_steps):
         F = step_maps(j)
         if Q is None:
-            Q = np.eye(F.shape[0])[:, : (k or F.shape[0])]
+            Q = np.eye(F.shape[0])
         Q, R = np.linalg.qr(F @ Q)
-        total += np.log(max(abs(R[0, 0]), 1e-300))
-    return total / (n_steps * dt)
+        if j >= burn_in:
+            total += np.log(max(abs(R[0, 0]), 1e-300))
+    return total / ((n_steps - burn_in) * dt)
+
+
+def sampled_lyapunov(loop: SampledLoop, motion: BaseMotion, periods: int, period: float) -> float:
+    """Largest Lyapunov exponent (1/s) of the digital loop over ``periods`` base periods (incommensurate Ts)."""
+    steps = int(np.ceil(periods * period / loop.Ts))
+    t = np.arange(steps) * loop.Ts
+    Om, dOm = motion.angular_velocity(t)
+    return lyapunov_exponent(lambda j: loop.step_map(Om[:, j], dOm[:, j]), steps, loop.Ts, burn_in=steps // 2)

@@ -15,6 +15,7 @@ from .structure import StructuralModel
 from .system import ClosedLoop, coefficients_from_rates
 
 REAL_ROOT_TOL = 1e-9  # |Im lambda| <= tol * |lambda| counts as a real root
+REPEAT_TOL = 1e-7  # eigenvalues this close (relative) form one whirl cluster
 
 
 @dataclass(frozen=True)
@@ -50,11 +51,21 @@ class ModalResult:
         }
 
 
-def whirl_direction(model: StructuralModel, phi_q: np.ndarray) -> str:
-    """forward/backward from the displacement part of an eigenvector (generalised coordinates)."""
-    phi = model.to_fe(phi_q)
+def whirl_form(model: StructuralModel, phis_q: np.ndarray) -> np.ndarray:
+    """Hermitian whirl form H_ij = sum_nodes (conj(v_i) w_j - conj(w_i) v_j)/(2i) of eigenvectors (columns).
+
+    For one vector H = sum Im(conj(v) w): negative = forward.  For a repeated eigenvalue (an isotropic rotor
+    at rest) the eigenvectors of H are the pure forward and backward circular modes of the eigenspace.
+    """
+    phi = model.to_fe(phis_q.T).T
     v, w = phi[0::4], phi[1::4]
-    return "forward" if np.sum(np.imag(np.conj(v) * w)) < 0 else "backward"
+    return (v.conj().T @ w - w.conj().T @ v) / 2j
+
+
+def whirl_labels(model: StructuralModel, phis_q: np.ndarray) -> list[str]:
+    """forward/backward for a cluster of (numerically) equal eigenvalues, eigenvectors as columns."""
+    signs = np.linalg.eigvalsh(whirl_form(model, phis_q))
+    return ["forward" if x < 0 else "backward" for x in signs]
 
 
 def modes_at_speed(
@@ -64,14 +75,21 @@ def modes_at_speed(
     Om = np.zeros(3) if Omega is None else np.asarray(Omega, dtype=float)
     c = coefficients_from_rates(Om, np.zeros(3), speed_rpm * np.pi / 30.0)
     lam, vecs = np.linalg.eig(loop.matrix(c))
-    modes, real = [], []
-    for j, z in enumerate(lam):
-        if abs(z.imag) <= REAL_ROOT_TOL * max(abs(z), 1.0):
-            real.append(float(z.real))
-        elif z.imag > 0:
-            whirl = whirl_direction(model, vecs[: loop.n, j])
+    real_mask = np.abs(lam.imag) <= REAL_ROOT_TOL * np.maximum(np.abs(lam), 1.0)
+    real = [float(z.real) for z in lam[real_mask]]
+    upper = np.flatnonzero(~real_mask & (lam.imag > 0))
+    upper = upper[np.argsort(lam[upper].imag)]
+    modes = []
+    i = 0
+    while i < upper.size:  # clusters of repeated eigenvalues share one whirl decomposition
+        j = i + 1
+        while j < upper.size and abs(lam[upper[j]] - lam[upper[i]]) <= REPEAT_TOL * abs(lam[upper[i]]):
+            j += 1
+        idx = upper[i:j]
+        for k, whirl in zip(idx, whirl_labels(model, vecs[: loop.n, idx]), strict=True):
+            z = lam[k]
             modes.append(Mode(float(z.imag), float(-z.real / abs(z)), whirl, complex(z)))
-    modes.sort(key=lambda m: m.frequency_rad_s)
+        i = j
     return ModalResult(float(speed_rpm), tuple(modes), tuple(sorted(real, reverse=True)))
 
 

@@ -1,0 +1,216 @@
+"""The verbs of ``amb-dynamics``: each takes parsed arguments, returns (JSON-able dict, human-readable text)."""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import plots
+from .chart import stability_chart
+from .config import RotorConfig, load_config
+from .errors import InputError
+from .floquet import floquet, hybrid_period, sampled_floquet, sampled_lyapunov
+from .modes import campbell_data, modes_at_speed
+from .motion import BaseMotion
+from .newmark import disk_initial_state, fit_growth_rate, newmark
+from .sampled import SampledLoop
+from .structure import StructuralModel, build_structure
+from .system import ClosedLoop, closed_loop, periodic_system
+
+LYAPUNOV_PERIODS = 40
+
+
+@dataclass
+class Setup:
+    cfg: RotorConfig
+    model: StructuralModel
+    loop: ClosedLoop
+
+
+def setup(args) -> Setup:
+    overrides = list(args.overrides)
+    if getattr(args, "formulation", None):
+        overrides.append(f"formulation={args.formulation}")
+    cfg = load_config(args.config, overrides)
+    model = build_structure(cfg)
+    return Setup(cfg, model, closed_loop(model, cfg))
+
+
+def describe(cfg: RotorConfig, model: StructuralModel) -> str:
+    red = f", modal cutoff {cfg.modal_cutoff:g} rad/s ({model.n} modes)" if cfg.modal_cutoff else ""
+    return f"{Path(cfg.source).name}: {cfg.shaft.elements} elements, {cfg.formulation}{red}"
+
+
+def motion_of(args) -> BaseMotion:
+    if args.motion in (None, "none"):
+        return BaseMotion()
+    return BaseMotion.single(args.motion, args.amplitude, args.frequency)
+
+
+def run_modes(args):
+    s = setup(args)
+    results = [modes_at_speed(s.model, s.loop, v) for v in args.speed_rpm]
+    data = {"model": describe(s.cfg, s.model), "speeds": [r.to_dict() for r in results]}
+    lines = [data["model"]]
+    for r in results:
+        lines.append(f"\n{r.speed_rpm:g} rpm   freq (rad/s)   freq (Hz)   damping   whirl     eigenvalue")
+        for m in r.modes:
+            if args.max_frequency and m.frequency_rad_s > args.max_frequency:
+                continue
+            lam = m.eigenvalue
+            lines.append(
+                f"         {m.frequency_rad_s:12.4f} {m.frequency_rad_s / 2 / np.pi:11.4f} "
+                f"{m.damping_ratio:9.5f}   {m.whirl:8s}  {lam.real:+.5g}{lam.imag:+.5g}j"
+            )
+        lines.append("         overdamped real roots (1/s): " + ", ".join(f"{x:.5g}" for x in r.real_roots))
+    return data, "\n".join(lines)
+
+
+def run_campbell(args):
+    s = setup(args)
+    t0 = time.perf_counter()
+    results = campbell_data(s.model, s.loop, args.speeds)
+    out = plots.campbell_figure(results, f"Campbell diagram: {describe(s.cfg, s.model)}", args.out, args.max_frequency)
+    data = {
+        "png": str(out),
+        "speeds_rpm": args.speeds.tolist(),
+        "seconds": time.perf_counter() - t0,
+        "speeds": [r.to_dict() for r in results],
+    }
+    return data, f"Campbell diagram ({len(results)} speeds) written to {out}"
+
+
+def run_floquet(args):
+    s = setup(args)
+    motion = motion_of(args)
+    ps = periodic_system(s.loop, motion, s.cfg.spin_rad_s)
+    if args.controller == "continuous":
+        if ps.period is None:
+            raise InputError("a static base gives no periodic A(t): use `amb-dynamics modes` for its eigenvalues")
+        res = floquet(ps)
+        data = res.to_dict(args.top)
+    else:
+        loop = SampledLoop(s.model, s.cfg, forcing=False)
+        if ps.period is not None and hybrid_period(ps.period, loop.Ts) is None and not args.snap:
+            lam = sampled_lyapunov(loop, motion, LYAPUNOV_PERIODS, ps.period)
+            data = {
+                "period_s": ps.period,
+                "method": f"lyapunov-qr({LYAPUNOV_PERIODS} periods)",
+                "lyapunov_exponent_1_s": lam,
+                "max_abs_multiplier": float(np.exp(lam * ps.period)),
+                "stable": bool(lam * ps.period < -1e-6),
+                "multipliers": None,
+                "notes": [
+                    f"T/Ts = {ps.period / loop.Ts:.6f} is not p/r with r <= 64: no monodromy; "
+                    "largest Lyapunov exponent instead (use --snap for multipliers)"
+                ],
+            }
+        else:
+            data = sampled_floquet(loop, motion, ps.period, snap=args.snap).to_dict(args.top)
+        data["controller_rate_hz"] = 1.0 / loop.Ts
+    data.update(
+        model=describe(s.cfg, s.model),
+        controller=args.controller,
+        motion={"kind": args.motion, "amplitude_rad": args.amplitude, "frequency_rad_s": args.frequency},
+    )
+    text = [
+        f"{data['model']}; {args.motion} A = {args.amplitude} rad, omega = {args.frequency} rad/s, "
+        f"{args.controller} controller",
+        f"period {data['period_s']:.6g} s   max|mu| = {data['max_abs_multiplier']:.9f}   "
+        f"{'STABLE' if data['stable'] else 'NOT STABLE'}   ({data['method']}, {data.get('steps', '-')} steps)",
+    ]
+    for z in (data.get("multipliers") or [])[: args.top]:
+        text.append(f"   mu = {z[0]:+.9f} {z[1]:+.9f}j   |mu| = {np.hypot(*z):.9f}")
+    text += [f"   note: {n}" for n in data.get("notes", [])]
+    return data, "\n".join(text)
+
+
+def run_chart(args):
+    s = setup(args)
+    if (args.frequency <= 0).any() or (args.amplitude < 0).any():
+        raise InputError("chart frequencies must be > 0 rad/s and amplitudes >= 0 rad")
+    res = stability_chart(
+        s.loop, args.motion, args.frequency, args.amplitude, s.cfg.spin_rad_s, workers=args.workers, progress=True
+    )
+    title = f"{describe(s.cfg, s.model)}\n{args.motion}, spin {s.cfg.spin_speed_rpm:g} rpm: max|mu| per period"
+    png = plots.chart_figure(res.omegas, res.amplitudes, res.rho, title, args.out)
+    data = res.to_dict()
+    data.update(model=describe(s.cfg, s.model), png=str(png))
+    if args.json_out:
+        _write_json(args.json_out, data)
+    text = (
+        f"chart {res.rho.shape[0]}x{res.rho.shape[1]} in {res.seconds:.2f} s: "
+        f"{data['unstable_points']} unstable points, max|mu| = {res.rho.max():.6f}\nPNG: {png}"
+        + (f"\nJSON: {args.json_out}" if args.json_out else "")
+    )
+    summary = {k: v for k, v in data.items() if k not in ("max_abs_multiplier", "critical_frequency_rad_s")}
+    return summary, text
+
+
+def run_simulate(args):
+    s = setup(args)
+    motion = motion_of(args)
+    ps = periodic_system(s.loop, motion, s.cfg.spin_rad_s)
+    disk_node = s.cfg.disks[0].node if s.cfg.disks else s.cfg.n_nodes
+    x0 = disk_initial_state(s.model, s.loop.N, disk_node)
+    if ps.period is not None:
+        T, h = ps.period, ps.period / args.steps_per_period
+        every = args.steps_per_period
+    else:
+        T, h, every = None, 2e-4, 1
+    steps = round(args.duration / h)
+    if steps < 1:
+        raise InputError("--duration must cover at least one time step")
+    run = newmark(ps, s.model.M, x0, h, steps, every=1)
+    q_fe = s.model.to_fe(run.x[:, : s.model.n])
+    disk = q_fe[:, 4 * (disk_node - 1) : 4 * (disk_node - 1) + 2]
+    strobe = run.x[::every]
+    sigma, c0, tt = fit_growth_rate(run.t[::every], np.linalg.norm(strobe, axis=1))
+    data = {
+        "model": describe(s.cfg, s.model),
+        "duration_s": float(run.t[-1]),
+        "step_s": h,
+        "steps": steps,
+        "newmark_growth_rate_1_s": sigma,
+        "peak_disk_displacement_m": float(np.abs(disk).max()),
+    }
+    if T is not None:
+        fl = floquet(ps)
+        sigma_f = float(np.log(fl.max_abs) / T)
+        data.update(
+            period_s=T,
+            floquet_growth_rate_1_s=sigma_f,
+            max_abs_multiplier=fl.max_abs,
+            stable=fl.stable,
+            relative_difference=abs(sigma - sigma_f) / max(abs(sigma_f), 1e-300),
+        )
+    png = plots.response_figure(
+        run.t,
+        disk,
+        [f"v node {disk_node}", f"w node {disk_node}"],
+        (tt, sigma, c0),
+        f"Newmark response: {data['model']}",
+        args.out,
+    )
+    data["png"] = str(png)
+    text = (
+        f"{data['model']}: {steps} Newmark steps of {h:.4g} s; growth rate (Newmark fit) {sigma:.6g} 1/s"
+        + (
+            f", Floquet {data['floquet_growth_rate_1_s']:.6g} 1/s (max|mu| {data['max_abs_multiplier']:.9f})"
+            if T is not None
+            else ""
+        )
+        + f"\nPNG: {png}"
+    )
+    return data, text
+
+
+def _write_json(path: Path, data: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(json.dumps(data))
+    tmp.replace(path)

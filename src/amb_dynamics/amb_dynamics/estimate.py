@@ -1,0 +1,262 @@
+"""Floquet multipliers identified from data: the one-period map of period-stacked snapshots (issue 6).
+
+A linear T-periodic loop sampled at phases t_i = t0 + i T/P of every period j gives, per phase, snapshots
+that are a sum of geometric sequences in j plus the forced periodic response:
+
+    s_j(i) = sum_l c_l mu_l^j v_l(i) + p_{j mod r}(i),        mu_l = Floquet multipliers (one period T)
+
+where r is the number of periods after which the forcing repeats (pitch and yaw: the base motion repeats
+after 2 periods of A(t), and f(t + T) = -f(t)).  Stacking the P phase vectors of one period into a column
+z_j (``StreamingEstimator`` does it) gives z_{j+1} = A z_j + d_{j mod r} with the eigenvalues of A the
+multipliers of the modes present in the data.  ``fit_period_map`` identifies A on the dominant subspace:
+
+1. project the columns on the complement of the r forcing classes (removes d exactly; Frisch-Waugh);
+2. SVD of the regressor; keep the directions above max(numerical floor, noise floor): this is the rank /
+   energy test, and a zero rank means *insufficient excitation* (no transient above noise: a decayed
+   noise-free rotor carries no information about its multipliers);
+3. exact DMD (least squares, optionally total least squares for measurement noise) in that subspace;
+4. eigenvalues -> multipliers, and a first-order standard error of rho = max|mu| from the LS residual
+   covariance and the eigenvalue's left/right eigenvectors.
+
+``InstabilityFlag`` turns the estimates into a verdict with a margin, a confidence gate and hysteresis.
+Noise-free data of a linear loop are fitted exactly: the dominant multipliers come out to round-off.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+import scipy.linalg as sla
+
+from .errors import InputError
+
+REL_FLOOR = 1e-9  # singular values below this fraction of the data norm are round-off, not signal
+NOISE_FACTOR = 1.5  # noise floor = this times the expected largest singular value of the noise matrix
+METHODS = ("ls", "tls")
+
+STABLE, UNSTABLE, MARGINAL, INSUFFICIENT = "stable", "unstable", "marginal", "insufficient_excitation"
+
+
+@dataclass(frozen=True)
+class MapFit:
+    """Result of one identification of the one-period map.
+
+    multipliers : (rank,) complex, sorted by decreasing modulus (empty if not excited).
+    rho_std : float, first-order standard error of rho (inf if it cannot be estimated).
+    singular_values : (k,) of the regressor after removing the forcing (scaled data units).
+    noise_floor : float, singular values below it are treated as noise / round-off.
+    pairs : int, snapshot pairs (periods) in the fit; dof : int, pairs left after forcing and rank.
+    signal_rank : int, significant directions found; rank : int, directions modelled (<= signal_rank).
+    """
+
+    multipliers: np.ndarray
+    rho_std: float
+    singular_values: np.ndarray
+    noise_floor: float
+    pairs: int
+    signal_rank: int
+    rank: int
+    dof: int
+    method: str
+    reason: str = ""  # why the data are insufficient ('' if excited)
+
+    @property
+    def excited(self) -> bool:
+        return self.rank > 0 and not self.reason
+
+    @property
+    def rho(self) -> float:
+        return float(np.abs(self.multipliers[0])) if self.multipliers.size else float("nan")
+
+    @property
+    def resolved(self) -> bool:
+        """Every significant direction of the data is in the model (else the window is too short)."""
+        return self.excited and self.rank == self.signal_rank
+
+    @property
+    def snr(self) -> float:
+        """Largest singular value over the noise floor (> 1 means some transient is visible)."""
+        return float(self.singular_values[0] / self.noise_floor) if self.singular_values.size else 0.0
+
+    def to_dict(self, top: int | None = None) -> dict:
+        mu = self.multipliers if top is None else self.multipliers[:top]
+        return {
+            "multipliers": [[float(z.real), float(z.imag)] for z in mu],
+            "rho": self.rho if self.excited else None,
+            "rho_std": self.rho_std if self.excited and np.isfinite(self.rho_std) else None,
+            "rank": self.rank,
+            "signal_rank": self.signal_rank,
+            "pairs": self.pairs,
+            "dof": self.dof,
+            "snr": self.snr,
+            "method": self.method,
+            "excited": self.excited,
+            "reason": self.reason,
+        }
+
+
+@lru_cache(maxsize=64)
+def _forcing_complement(pairs: int, classes: int) -> np.ndarray:
+    """Orthonormal basis (pairs, pairs - classes) of the vectors orthogonal to the class indicators j mod r."""
+    E = np.zeros((classes, pairs))
+    E[np.arange(pairs) % classes, np.arange(pairs)] = 1.0
+    return sla.null_space(E)
+
+
+def noise_floor(row_noise: np.ndarray | None, rows: int, cols: int, data_norm: float) -> float:
+    """Largest singular value that noise (or round-off) alone would give an (rows x cols) matrix.
+
+    row_noise : (rows,) noise std per row in the units of the data, or None (noise-free: round-off only).
+    For independent noise of std v_i in row i the largest singular value is about sqrt(sum v_i^2) +
+    sqrt(cols max v_i^2) (the Marchenko-Pastur edge for equal v_i), times the safety ``NOISE_FACTOR``.
+    """
+    floor = REL_FLOOR * data_norm
+    if row_noise is not None:
+        v2 = np.square(np.broadcast_to(np.asarray(row_noise, dtype=float), (rows,)))
+        floor = max(floor, NOISE_FACTOR * (np.sqrt(v2.sum()) + np.sqrt(cols * v2.max())))
+    return float(floor)
+
+
+def fit_period_map(
+    Z: np.ndarray,
+    forcing_periods: int = 1,
+    row_noise: np.ndarray | float | None = None,
+    method: str = "ls",
+    max_rank: int = 12,
+    min_dof: int = 1,
+) -> MapFit:
+    """Identify z_{j+1} = A z_j + d_{j mod r} on the dominant subspace and return A's eigenvalues.
+
+    Parameters
+    ----------
+    Z : np.ndarray, shape (m, J+1)
+        Column j = stacked snapshots of period j (rows scaled to comparable units).
+    forcing_periods : int
+        r: the forcing term repeats every r columns (1: constant d; pitch/yaw: 2).
+    row_noise : (m,) array, float or None
+        Measurement-noise std per row in the units of Z (None: noise-free, round-off floor only).
+    method : 'ls' or 'tls'
+        Least squares (consistent under process noise) or total least squares (debiased for measurement
+        noise, Hemati et al. 2017: both snapshot sets projected on the leading right singular vectors).
+    max_rank : int
+        Largest number of modes modelled.
+    min_dof : int
+        Pairs that must remain after the forcing classes and the rank (>= 1 for a residual).
+    """
+    Z = np.asarray(Z, dtype=float)
+    if Z.ndim != 2 or not np.isfinite(Z).all():
+        raise InputError("snapshot matrix must be a finite 2-D array")
+    if method not in METHODS:
+        raise InputError(f"unknown estimation method '{method}' (ls or tls)")
+    if forcing_periods < 1 or max_rank < 1 or min_dof < 1:
+        raise InputError("forcing_periods, max_rank and min_dof must be >= 1")
+    m, cols = Z.shape
+    pairs = cols - 1
+    empty = np.zeros(0, dtype=complex)
+    free = pairs - forcing_periods  # pairs left once the forcing classes are removed
+    if free < 1 + min_dof:
+        return MapFit(empty, np.inf, np.zeros(0), np.nan, pairs, 0, 0, 0, method, "too few periods")
+    Q = _forcing_complement(pairs, forcing_periods)
+    Xm, Xp = Z[:, :-1] @ Q, Z[:, 1:] @ Q
+    U, s, Vh = np.linalg.svd(Xm, full_matrices=False)
+    floor = noise_floor(row_noise, m, free, float(np.linalg.norm(Z, 2)))
+    signal_rank = int(np.count_nonzero(s > floor))
+    rank = min(signal_rank, max_rank, free - min_dof)
+    if signal_rank == 0:
+        return MapFit(empty, np.inf, s, floor, pairs, 0, 0, 0, method, "no transient above the noise floor")
+    if method == "tls":
+        _, _, Wh = np.linalg.svd(np.vstack([Xm, Xp]), full_matrices=False)
+        Pv = Wh[:rank].T @ Wh[:rank]
+        Xm, Xp = Xm @ Pv, Xp @ Pv
+        U, s_t, Vh = np.linalg.svd(Xm, full_matrices=False)
+    else:
+        s_t = s
+    Ur, sr, Vr = U[:, :rank], s_t[:rank], Vh[:rank].T
+    Yr = Ur.T @ Xp  # (rank, free): next-period data in the subspace
+    A = (Yr @ Vr) / sr  # DMD operator: U^T Xp V S^-1
+    mu, vl, vr = sla.eig(A, left=True, right=True)
+    order = np.lexsort((-mu.imag, -np.abs(mu)))
+    mu = mu[order]
+    std = _rho_std(A, Yr, sr, Vr, vl[:, order[0]], vr[:, order[0]], mu[0], free - rank)
+    return MapFit(mu, std, s, floor, pairs, signal_rank, rank, free - rank, method)
+
+
+def _rho_std(A, Yr, sr, Vr, wl, vr, mu0, dof) -> float:
+    """First-order standard error of |mu0| from the least-squares covariance of A (rows independent).
+
+    With Xr = diag(s) V^T the LS covariance is Cov(A_ab, A_cd) = Se_ac (Xr Xr^T)^-1_bd = Se_ac delta_bd / s_b^2,
+    Se the residual covariance; d mu = wl^H dA vr / (wl^H vr), d|mu| = Re(conj(mu) d mu) / |mu|.
+    """
+    if dof < 1:
+        return float("inf")
+    E = Yr - A @ (sr[:, None] * Vr.T)
+    Se = E @ E.T / dof
+    denom = np.vdot(wl, vr)
+    if abs(denom) < 1e-14 * np.linalg.norm(wl) * np.linalg.norm(vr) or abs(mu0) == 0:
+        return float("inf")
+    dmu = np.outer(wl.conj(), vr) / denom  # d mu / d A_ab
+    g = np.real(np.conj(mu0) * dmu) / abs(mu0)
+    var = float(np.sum((Se @ g) * g / sr[None, :] ** 2))
+    return float(np.sqrt(max(var, 0.0)))
+
+
+# ---- verdict with margin, confidence gate and hysteresis ------------------------------------------------------
+@dataclass(frozen=True)
+class VerdictPolicy:
+    """When the unstable flag is raised and cleared.
+
+    Raise after ``confirm`` consecutive estimates with rho >= 1 + margin and rho - z*std > 1 (resolved fits
+    only); clear after ``confirm`` consecutive estimates with rho + z*std < 1 + margin - hysteresis.
+    """
+
+    margin: float = 0.02
+    hysteresis: float = 0.02
+    z: float = 3.0
+    confirm: int = 2
+
+    def __post_init__(self):
+        if not (self.margin >= 0 and self.hysteresis >= 0 and self.z >= 0 and self.confirm >= 1):
+            raise InputError("verdict policy: margin, hysteresis, z must be >= 0 and confirm >= 1")
+
+
+@dataclass
+class InstabilityFlag:
+    """Latched instability verdict driven by successive ``MapFit`` results."""
+
+    policy: VerdictPolicy = field(default_factory=VerdictPolicy)
+    unstable: bool = False
+    _up: int = 0
+    _down: int = 0
+
+    def update(self, fit: MapFit) -> str:
+        """Feed one estimate; returns the verdict (stable, marginal, unstable, insufficient_excitation)."""
+        p = self.policy
+        if not fit.excited:
+            self._up = self._down = 0
+            return UNSTABLE if self.unstable else INSUFFICIENT
+        rho, sd = fit.rho, fit.rho_std
+        lo, hi = rho - p.z * sd, rho + p.z * sd
+        if not self.unstable:
+            raise_ok = fit.resolved and rho >= 1.0 + p.margin and lo > 1.0
+            self._up = self._up + 1 if raise_ok else 0
+            if self._up >= p.confirm:
+                self.unstable, self._up = True, 0
+        else:
+            self._down = self._down + 1 if hi < 1.0 + p.margin - p.hysteresis else 0
+            if self._down >= p.confirm:
+                self.unstable, self._down = False, 0
+        if self.unstable:
+            return UNSTABLE
+        return STABLE if hi < 1.0 else MARGINAL
+
+    def confidence(self, fit: MapFit) -> float:
+        """Probability (normal approximation) that rho is on the side of 1 where the estimate is."""
+        if not fit.excited or not np.isfinite(fit.rho_std):
+            return 0.0
+        if fit.rho_std == 0.0:
+            return 1.0
+        from math import erf, sqrt
+
+        return float(0.5 * (1.0 + erf(abs(fit.rho - 1.0) / (fit.rho_std * sqrt(2.0)))))

@@ -1,0 +1,231 @@
+"""Online (windowed) Floquet estimation from a stream of samples: what the monitor node runs.
+
+Samples s_k (full plant state [q; q'], or the 4 AMB displacements in sensor-only mode) arrive one by one.
+``StreamingEstimator`` samples them at P fixed phases of every period T of A(t) (exactly at the samples when
+T/Ts and the phase offsets are whole numbers of samples, by linear interpolation otherwise), stacks the P
+phase vectors of one period into a column (an intra-period delay embedding: with P phases the 4 AMB channels
+observe every lightly damped mode, which is what makes the sensor-only mode work), and every
+P / ``updates_per_period`` phases refits the one-period map over the last ``window`` periods with
+:func:`amb_dynamics.estimate.fit_period_map`.  A column may start at any phase, so updates come several times
+per period.  Rows are scaled by their channel's RMS; the measurement noise per channel is given or estimated
+from fourth differences of consecutive samples (robust MAD; a smooth signal at 5 kHz has almost none).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError
+from .estimate import InstabilityFlag, MapFit, VerdictPolicy, fit_period_map
+
+SLOT_TOL = 1e-3  # a sample within this fraction of Ts of a phase time is taken as it is
+NOISE_BUFFER = 2048  # fourth differences kept per channel for the noise estimate
+D4_VARIANCE = 70.0  # Var(n_k - 4n_{k-1} + 6n_{k-2} - 4n_{k-3} + n_{k-4}) / Var(n) for white noise
+MAD_TO_STD = 1.4826
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """Settings of the online estimator.
+
+    period : float
+        T (s), the period of A(t) that the multipliers refer to (pitch/yaw: pi/omega).
+    sample_time : float
+        Ts (s), spacing of the incoming samples.
+    forcing_periods : int
+        The base-motion forcing repeats every this many periods (pitch/yaw: 2, roll or none: 1).
+    phases : int
+        P, phases sampled per period (rows of a column = P x channels).
+    window : int
+        Snapshot pairs (periods) in the moving window.
+    updates_per_period : int
+        Refits per period (each starting the columns at another phase).
+    noise_std : float, sequence or None
+        Measurement-noise std per channel (signal units); None = estimate from the data.
+    """
+
+    period: float
+    sample_time: float
+    forcing_periods: int = 1
+    phases: int = 32
+    window: int = 16
+    updates_per_period: int = 4
+    method: str = "ls"
+    max_rank: int = 12
+    noise_std: float | tuple[float, ...] | None = None
+    policy: VerdictPolicy = field(default_factory=VerdictPolicy)
+
+    def __post_init__(self):
+        if not (np.isfinite(self.period) and np.isfinite(self.sample_time)) or self.sample_time <= 0:
+            raise InputError("estimator: period and sample_time must be finite and positive")
+        if self.period < 2 * self.sample_time:
+            raise InputError(f"estimator: period {self.period:g} s is shorter than two samples")
+        if self.phases < 1 or self.window < 3 or self.updates_per_period < 1 or self.forcing_periods < 1:
+            raise InputError("estimator: phases, updates_per_period, forcing_periods >= 1 and window >= 3")
+        if self.phases > self.period / self.sample_time + 1e-9:
+            raise InputError(f"estimator: {self.phases} phases need more samples per period than there are")
+
+    @property
+    def samples_per_period(self) -> float:
+        return self.period / self.sample_time
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One refit: time of the newest sample (s), periods of data, the fit, verdict and latched flag."""
+
+    time: float
+    periods: int
+    fit: MapFit
+    verdict: str
+    unstable: bool
+    confidence: float
+
+    @property
+    def rho(self) -> float:
+        return self.fit.rho
+
+    def to_dict(self, top: int | None = 6) -> dict:
+        return {
+            "time_s": self.time,
+            "periods": self.periods,
+            "verdict": self.verdict,
+            "unstable": self.unstable,
+            "confidence": self.confidence,
+            **self.fit.to_dict(top),
+        }
+
+
+class StreamingEstimator:
+    """Windowed one-period-map identification over a sample stream of ``channels`` values per sample."""
+
+    def __init__(self, config: EstimatorConfig, channels: int):
+        if channels < 1:
+            raise InputError("estimator needs at least one channel")
+        self.cfg, self.channels = config, channels
+        N = config.samples_per_period
+        # whole-sample phase offsets when T/Ts is a whole number: the snapshots are samples, not interpolants
+        self._integer = abs(N - round(N)) <= 1e-6 * N
+        P = config.phases
+        self._offsets = (
+            np.round(np.arange(P) * round(N) / P) * config.sample_time if self._integer else np.arange(P) * config.period / P
+        )
+        self._stride = max(1, P // config.updates_per_period)
+        cap = (config.window + 2) * P
+        self._slots = np.zeros((cap, channels))
+        self._noise = None if config.noise_std is None else np.broadcast_to(np.asarray(config.noise_std, float), (channels,))
+        if self._noise is not None and (not np.isfinite(self._noise).all() or (self._noise < 0).any()):
+            raise InputError("estimator: noise_std must be finite and >= 0")
+        self.flag = InstabilityFlag(config.policy)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget all samples (e.g. after a change of period); the latched flag is kept."""
+        self._t0: float | None = None
+        self._g = 0  # next slot index
+        self._hist: deque = deque(maxlen=5)
+        self._d4 = np.zeros((NOISE_BUFFER, self.channels))
+        self._n_d4 = 0
+        self.latest: Estimate | None = None
+
+    # ---- sampling ---------------------------------------------------------------------------------------
+    def _slot_time(self, g: int) -> float:
+        P = self.cfg.phases
+        return self._t0 + (g // P) * self.cfg.period + self._offsets[g % P]
+
+    def push(self, t: float, s: np.ndarray) -> Estimate | None:
+        """Add sample s (channels,) taken at time t (s); returns an Estimate when a refit happened."""
+        s = np.asarray(s, dtype=float)
+        if s.shape != (self.channels,):
+            raise InputError(f"estimator: sample has shape {s.shape}, expected ({self.channels},)")
+        if not np.isfinite(s).all() or not np.isfinite(t):
+            raise InputError("estimator: sample or time is not finite")
+        Ts = self.cfg.sample_time
+        if self._t0 is None:
+            self._t0 = float(t)
+        elif t <= self._hist[-1][0]:
+            raise InputError(f"estimator: time {t:.9f} s does not increase")
+        self._noise_sample(t, s)
+        out = None
+        while True:
+            ts = self._slot_time(self._g)
+            if ts > t + SLOT_TOL * Ts:
+                break
+            if abs(ts - t) <= SLOT_TOL * Ts or not self._hist:
+                value = s
+            else:
+                t1, s1 = self._hist[-1]
+                value = s1 + (s - s1) * ((ts - t1) / (t - t1))
+            self._slots[self._g % self._slots.shape[0]] = value
+            self._g += 1
+            if self._g % self._stride == 0:
+                out = self._refit(float(t)) or out
+        self._hist.append((float(t), s.copy()))
+        return out
+
+    def _noise_sample(self, t: float, s: np.ndarray) -> None:
+        h = self._hist
+        if self._noise is not None or len(h) < 4:
+            return
+        t4, t3, t2, t1 = h[-4][0], h[-3][0], h[-2][0], h[-1][0]
+        dts = (t3 - t4, t2 - t3, t1 - t2, t - t1)
+        if max(dts) - min(dts) > SLOT_TOL * self.cfg.sample_time:
+            return  # not equally spaced (a gap): no fourth difference
+        self._d4[self._n_d4 % NOISE_BUFFER] = s - 4.0 * h[-1][1] + 6.0 * h[-2][1] - 4.0 * h[-3][1] + h[-4][1]
+        self._n_d4 += 1
+
+    def noise_estimate(self) -> np.ndarray | None:
+        """Measurement-noise std per channel: configured, or from the fourth differences (None if too few)."""
+        if self._noise is not None:
+            return self._noise
+        k = min(self._n_d4, NOISE_BUFFER)
+        if k < 16:
+            return None
+        return MAD_TO_STD * np.median(np.abs(self._d4[:k]), axis=0) / np.sqrt(D4_VARIANCE)
+
+    # ---- fitting -----------------------------------------------------------------------------------------
+    def window_matrix(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(Z, row_scale): the columns of the current window in time order, rows scaled; None if < 2 columns."""
+        P, cap = self.cfg.phases, self._slots.shape[0]
+        cols = min(self.cfg.window + 1, self._g // P)
+        if cols < 2:
+            return None
+        idx = np.arange(self._g - cols * P, self._g) % cap
+        data = self._slots[idx]  # (cols*P, channels), time order
+        scale = np.sqrt(np.mean(np.square(data), axis=0))
+        scale = np.where(scale > 0, scale, 1.0)
+        Z = (data / scale).reshape(cols, P * self.channels).T
+        return Z, scale
+
+    def _refit(self, t: float) -> Estimate | None:
+        wm = self.window_matrix()
+        if wm is None:
+            return None
+        Z, scale = wm
+        noise = self.noise_estimate()
+        row_noise = None if noise is None else np.tile(noise / scale, self.cfg.phases)
+        if noise is not None and not noise.any():
+            row_noise = None  # declared noise-free: round-off floor only
+        fit = fit_period_map(Z, self.cfg.forcing_periods, row_noise, self.cfg.method, self.cfg.max_rank)
+        verdict = self.flag.update(fit)
+        est = Estimate(t, Z.shape[1] - 1, fit, verdict, self.flag.unstable, self.flag.confidence(fit))
+        self.latest = est
+        return est
+
+
+def estimate_series(t: np.ndarray, S: np.ndarray, config: EstimatorConfig) -> list[Estimate]:
+    """Run the streaming estimator over recorded samples t (K,), S (K, channels); all refits in order."""
+    t = np.asarray(t, dtype=float)
+    S = np.asarray(S, dtype=float)
+    if S.ndim != 2 or S.shape[0] != t.shape[0]:
+        raise InputError(f"samples must have shape (len(t), channels); got {S.shape} for {t.shape[0]} times")
+    est = StreamingEstimator(config, S.shape[1])
+    out = []
+    for k in range(t.shape[0]):
+        e = est.push(t[k], S[k])
+        if e is not None:
+            out.append(e)
+    return out
