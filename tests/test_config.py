@@ -46,7 +46,7 @@ def test_bad_config_rejected(seed_config_path, override, message):
 def test_bad_yaml_and_missing_file(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("shaft: {length: 1.5\n")
-    with pytest.raises(ConfigError, match="bad.yaml.*not valid YAML"):
+    with pytest.raises(ConfigError, match=r"bad.yaml.*not valid YAML"):
         load_config(bad)
     with pytest.raises(ConfigError, match="cannot read config"):
         load_config(tmp_path / "missing.yaml")
@@ -68,8 +68,9 @@ def test_bad_yaml_and_missing_file(tmp_path):
     ],
 )
 def test_cli_bad_config_one_line(venv_bin, tmp_path, args):
-    proc = subprocess.run([str(venv_bin / "amb-dynamics"), *args], capture_output=True, text=True, cwd=tmp_path,
-                          timeout=60)
+    proc = subprocess.run(
+        [str(venv_bin / "amb-dynamics"), *args], capture_output=True, text=True, cwd=tmp_path, timeout=60
+    )
     assert proc.returncode != 0
     assert "Traceback" not in proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]

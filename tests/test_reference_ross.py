@@ -25,26 +25,30 @@ def ross_eigenvalues(repo, tmp_path_factory):
     out = tmp_path_factory.mktemp("ross") / "ross.json"
     py = repo / ".venv-ref" / "bin" / "python"
     assert py.exists(), "the reference venv is missing: run `make ref` (make test does it)"
-    subprocess.run([str(py), str(repo / "tests/reference/ross_modes.py"), str(out), *map(str, SPEEDS)],
-                   check=True, capture_output=True, timeout=300)
+    subprocess.run(
+        [str(py), str(repo / "tests/reference/ross_modes.py"), str(out), *map(str, SPEEDS)],
+        check=True,
+        capture_output=True,
+        timeout=300,
+    )
     data = json.loads(out.read_text())
     return {s: np.array([complex(*z) for z in data[str(s)]]) for s in SPEEDS}, data
 
 
 @pytest.mark.parametrize("speed", SPEEDS)
 def test_modes_match_ross(ross_eigenvalues, speed):
-    ross, data = ross_eigenvalues
+    ross, _ = ross_eigenvalues
     cfg = load_config(overrides=["modal_cutoff=null"])
     model = build_structure(cfg)
     res = modes_at_speed(model, closed_loop(model, cfg), speed)
     ref = ross[speed]
     upper = ref[ref.imag > 0]
-    assert 2 * len(res.modes) + len(res.real_roots) == 2 * model.n   # every eigenvalue is accounted for
+    assert 2 * len(res.modes) + len(res.real_roots) == 2 * model.n  # every eigenvalue is accounted for
     for mode in res.modes:
         j = np.argmin(np.abs(upper - mode.eigenvalue))
         assert abs(upper[j].imag - mode.frequency_rad_s) <= 1e-3 * mode.frequency_rad_s, (mode, upper[j])
         assert abs(upper[j] - mode.eigenvalue) <= 1e-3 * abs(mode.eigenvalue)
-    for root in res.real_roots:   # overdamped AMB roots (about -1208 and -4582 1/s at rest)
+    for root in res.real_roots:  # overdamped AMB roots (about -1208 and -4582 1/s at rest)
         assert np.min(np.abs(ref - root)) <= 1e-3 * abs(root)
 
 

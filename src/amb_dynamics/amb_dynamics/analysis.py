@@ -168,8 +168,8 @@ def run_simulate(args):
     run = newmark(ps, s.model.M, x0, h, steps, every=1)
     q_fe = s.model.to_fe(run.x[:, : s.model.n])
     disk = q_fe[:, 4 * (disk_node - 1) : 4 * (disk_node - 1) + 2]
-    strobe = run.x[::every]
-    sigma, c0, tt = fit_growth_rate(run.t[::every], np.linalg.norm(strobe, axis=1))
+    t_strobe, n_strobe = run.t[::every], np.linalg.norm(run.x[::every], axis=1)
+    sigma, c0, tt = fit_growth_rate(t_strobe, n_strobe)
     data = {
         "model": describe(s.cfg, s.model),
         "duration_s": float(run.t[-1]),
@@ -188,10 +188,21 @@ def run_simulate(args):
             stable=fl.stable,
             relative_difference=abs(sigma - sigma_f) / max(abs(sigma_f), 1e-300),
         )
+        # the fit is only comparable once the subdominant multipliers have decayed by 1e-2 (PHYSICS.md 7)
+        gap = np.log(fl.max_abs / max(abs(fl.multipliers[2]), 1e-300)) / T  # [0], [1]: a conjugate pair
+        needed = np.log(100.0) / gap if gap > 0 else np.inf
+        data["fit_window_start_s"] = float(tt[0])
+        data["fit_window_valid"] = bool(tt[0] >= needed)
+        if tt[0] < needed:
+            data["notes"] = [
+                f"subdominant multipliers have not decayed by 1e-2 before the fit window (needs t >= {needed:.3g} s,"
+                f" window starts at {tt[0]:.3g} s): run --duration {2 * needed:.3g} or more to compare growth rates"
+            ]
     png = plots.response_figure(
         run.t,
         disk,
         [f"v node {disk_node}", f"w node {disk_node}"],
+        (t_strobe, n_strobe),
         (tt, sigma, c0),
         f"Newmark response: {data['model']}",
         args.out,
@@ -204,6 +215,7 @@ def run_simulate(args):
             if T is not None
             else ""
         )
+        + "".join(f"\nnote: {n}" for n in data.get("notes", []))
         + f"\nPNG: {png}"
     )
     return data, text

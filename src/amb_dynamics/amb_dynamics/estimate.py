@@ -97,12 +97,34 @@ class MapFit:
         }
 
 
+FORCING_KINDS = ("none", "constant", "alternating")
+
+
+def forcing_regressors(forcing: str | int, pairs: int) -> np.ndarray:
+    """Sequences over the pair index j spanning the forcing term d_j, shape (k, pairs).
+
+    'none': no forcing (f = 0, e.g. roll); 'constant': d; 'alternating': (-1)^j d (pitch and yaw, where
+    f(t + T) = -f(t) with T = pi/omega the period of A(t)); an int r: any d that repeats every r periods.
+    """
+    j = np.arange(pairs)
+    if forcing == "none":
+        return np.zeros((0, pairs))
+    if forcing == "constant":
+        return np.ones((1, pairs))
+    if forcing == "alternating":
+        return np.where(j % 2 == 0, 1.0, -1.0)[None, :]
+    if isinstance(forcing, int | np.integer) and not isinstance(forcing, bool) and forcing >= 1:
+        E = np.zeros((int(forcing), pairs))
+        E[j % forcing, j] = 1.0
+        return E
+    raise InputError(f"unknown forcing model {forcing!r} (none, constant, alternating or a period count >= 1)")
+
+
 @lru_cache(maxsize=64)
-def _forcing_complement(pairs: int, classes: int) -> np.ndarray:
-    """Orthonormal basis (pairs, pairs - classes) of the vectors orthogonal to the class indicators j mod r."""
-    E = np.zeros((classes, pairs))
-    E[np.arange(pairs) % classes, np.arange(pairs)] = 1.0
-    return sla.null_space(E)
+def _forcing_complement(pairs: int, forcing: str | int) -> np.ndarray:
+    """Orthonormal basis (pairs, pairs - k) of the sequences orthogonal to the forcing regressors."""
+    E = forcing_regressors(forcing, pairs)
+    return np.eye(pairs) if E.shape[0] == 0 else sla.null_space(E)
 
 
 def noise_floor(row_noise: np.ndarray | None, rows: int, cols: int, data_norm: float) -> float:
@@ -121,7 +143,7 @@ def noise_floor(row_noise: np.ndarray | None, rows: int, cols: int, data_norm: f
 
 def fit_period_map(
     Z: np.ndarray,
-    forcing_periods: int = 1,
+    forcing: str | int = "constant",
     row_noise: np.ndarray | float | None = None,
     method: str = "ls",
     max_rank: int = 12,
@@ -133,8 +155,9 @@ def fit_period_map(
     ----------
     Z : np.ndarray, shape (m, J+1)
         Column j = stacked snapshots of period j (rows scaled to comparable units).
-    forcing_periods : int
-        r: the forcing term repeats every r columns (1: constant d; pitch/yaw: 2).
+    forcing : str or int
+        Model of the forcing term d_j: 'none', 'constant', 'alternating' (pitch, yaw) or a repeat count r
+        (see :func:`forcing_regressors`); each costs one snapshot pair per regressor.
     row_noise : (m,) array, float or None
         Measurement-noise std per row in the units of Z (None: noise-free, round-off floor only).
     method : 'ls' or 'tls'
@@ -150,15 +173,17 @@ def fit_period_map(
         raise InputError("snapshot matrix must be a finite 2-D array")
     if method not in METHODS:
         raise InputError(f"unknown estimation method '{method}' (ls or tls)")
-    if forcing_periods < 1 or max_rank < 1 or min_dof < 1:
-        raise InputError("forcing_periods, max_rank and min_dof must be >= 1")
+    if max_rank < 1 or min_dof < 1:
+        raise InputError("max_rank and min_dof must be >= 1")
     m, cols = Z.shape
     pairs = cols - 1
     empty = np.zeros(0, dtype=complex)
-    free = pairs - forcing_periods  # pairs left once the forcing classes are removed
+    if pairs < 1:
+        return MapFit(empty, np.inf, np.zeros(0), np.nan, pairs, 0, 0, 0, method, "too few periods")
+    free = pairs - forcing_regressors(forcing, pairs).shape[0]  # pairs left once the forcing is removed
     if free < 1 + min_dof:
         return MapFit(empty, np.inf, np.zeros(0), np.nan, pairs, 0, 0, 0, method, "too few periods")
-    Q = _forcing_complement(pairs, forcing_periods)
+    Q = _forcing_complement(pairs, forcing)
     Xm, Xp = Z[:, :-1] @ Q, Z[:, 1:] @ Q
     U, s, Vh = np.linalg.svd(Xm, full_matrices=False)
     floor = noise_floor(row_noise, m, free, float(np.linalg.norm(Z, 2)))

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import InputError
-from .estimate import InstabilityFlag, MapFit, VerdictPolicy, fit_period_map
+from .estimate import InstabilityFlag, MapFit, VerdictPolicy, fit_period_map, forcing_regressors
 
 SLOT_TOL = 1e-3  # a sample within this fraction of Ts of a phase time is taken as it is
 NOISE_BUFFER = 2048  # fourth differences kept per channel for the noise estimate
@@ -35,8 +35,9 @@ class EstimatorConfig:
         T (s), the period of A(t) that the multipliers refer to (pitch/yaw: pi/omega).
     sample_time : float
         Ts (s), spacing of the incoming samples.
-    forcing_periods : int
-        The base-motion forcing repeats every this many periods (pitch/yaw: 2, roll or none: 1).
+    forcing : str or int
+        Model of the base-motion forcing over periods: 'alternating' (pitch, yaw: f(t+T) = -f(t)),
+        'constant', 'none' (roll: f = 0) or a repeat count (see :func:`amb_dynamics.estimate.forcing_regressors`).
     phases : int
         P, phases sampled per period (rows of a column = P x channels).
     window : int
@@ -45,17 +46,21 @@ class EstimatorConfig:
         Refits per period (each starting the columns at another phase).
     noise_std : float, sequence or None
         Measurement-noise std per channel (signal units); None = estimate from the data.
+    scale_groups : sequence of int or None
+        Group id per channel; channels of a group share one row scale (their RMS over the window), so that
+        e.g. all modal coordinates keep their physical proportions.  None: every channel its own scale.
     """
 
     period: float
     sample_time: float
-    forcing_periods: int = 1
+    forcing: str | int = "constant"
     phases: int = 32
     window: int = 16
     updates_per_period: int = 4
     method: str = "ls"
     max_rank: int = 12
     noise_std: float | tuple[float, ...] | None = None
+    scale_groups: tuple[int, ...] | None = None
     policy: VerdictPolicy = field(default_factory=VerdictPolicy)
 
     def __post_init__(self):
@@ -63,8 +68,9 @@ class EstimatorConfig:
             raise InputError("estimator: period and sample_time must be finite and positive")
         if self.period < 2 * self.sample_time:
             raise InputError(f"estimator: period {self.period:g} s is shorter than two samples")
-        if self.phases < 1 or self.window < 3 or self.updates_per_period < 1 or self.forcing_periods < 1:
-            raise InputError("estimator: phases, updates_per_period, forcing_periods >= 1 and window >= 3")
+        if self.phases < 1 or self.window < 3 or self.updates_per_period < 1:
+            raise InputError("estimator: phases and updates_per_period must be >= 1 and window >= 3")
+        forcing_regressors(self.forcing, 1)  # validates the forcing model
         if self.phases > self.period / self.sample_time + 1e-9:
             raise InputError(f"estimator: {self.phases} phases need more samples per period than there are")
 
@@ -105,18 +111,24 @@ class StreamingEstimator:
     def __init__(self, config: EstimatorConfig, channels: int):
         if channels < 1:
             raise InputError("estimator needs at least one channel")
+        if config.scale_groups is not None and len(config.scale_groups) != channels:
+            raise InputError(f"estimator: scale_groups has {len(config.scale_groups)} entries for {channels} channels")
         self.cfg, self.channels = config, channels
         N = config.samples_per_period
         # whole-sample phase offsets when T/Ts is a whole number: the snapshots are samples, not interpolants
         self._integer = abs(N - round(N)) <= 1e-6 * N
         P = config.phases
         self._offsets = (
-            np.round(np.arange(P) * round(N) / P) * config.sample_time if self._integer else np.arange(P) * config.period / P
+            np.round(np.arange(P) * round(N) / P) * config.sample_time
+            if self._integer
+            else np.arange(P) * config.period / P
         )
         self._stride = max(1, P // config.updates_per_period)
         cap = (config.window + 2) * P
         self._slots = np.zeros((cap, channels))
-        self._noise = None if config.noise_std is None else np.broadcast_to(np.asarray(config.noise_std, float), (channels,))
+        self._noise = (
+            None if config.noise_std is None else np.broadcast_to(np.asarray(config.noise_std, float), (channels,))
+        )
         if self._noise is not None and (not np.isfinite(self._noise).all() or (self._noise < 0).any()):
             raise InputError("estimator: noise_std must be finite and >= 0")
         self.flag = InstabilityFlag(config.policy)
@@ -195,7 +207,12 @@ class StreamingEstimator:
             return None
         idx = np.arange(self._g - cols * P, self._g) % cap
         data = self._slots[idx]  # (cols*P, channels), time order
-        scale = np.sqrt(np.mean(np.square(data), axis=0))
+        ms = np.mean(np.square(data), axis=0)
+        groups = self.cfg.scale_groups
+        if groups is not None:
+            g = np.asarray(groups)
+            ms = np.array([ms[g == gi].mean() for gi in g])
+        scale = np.sqrt(ms)
         scale = np.where(scale > 0, scale, 1.0)
         Z = (data / scale).reshape(cols, P * self.channels).T
         return Z, scale
@@ -209,7 +226,7 @@ class StreamingEstimator:
         row_noise = None if noise is None else np.tile(noise / scale, self.cfg.phases)
         if noise is not None and not noise.any():
             row_noise = None  # declared noise-free: round-off floor only
-        fit = fit_period_map(Z, self.cfg.forcing_periods, row_noise, self.cfg.method, self.cfg.max_rank)
+        fit = fit_period_map(Z, self.cfg.forcing, row_noise, self.cfg.method, self.cfg.max_rank)
         verdict = self.flag.update(fit)
         est = Estimate(t, Z.shape[1] - 1, fit, verdict, self.flag.unstable, self.flag.confidence(fit))
         self.latest = est

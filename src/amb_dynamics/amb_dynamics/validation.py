@@ -11,8 +11,12 @@ from scipy.integrate import solve_ivp
 from .system import PeriodicSystem
 
 
-def monodromy_ivp(ps: PeriodicSystem, rtol: float = 1e-11, atol: float = 1e-13, method: str = "DOP853",
-                  ) -> np.ndarray:
+def monodromy_ivp(
+    ps: PeriodicSystem,
+    rtol: float = 1e-11,
+    atol: float = 1e-13,
+    method: str = "DOP853",
+) -> np.ndarray:
     """Phi(T) by ``solve_ivp`` from X(0) = I (all columns at once)."""
     N = ps.loop.N
     T = ps.period
@@ -21,7 +25,7 @@ def monodromy_ivp(ps: PeriodicSystem, rtol: float = 1e-11, atol: float = 1e-13, 
         return (ps.A(np.array([t]))[0] @ y.reshape(N, N)).ravel()
 
     sol = solve_ivp(rhs, (0.0, T), np.eye(N).ravel(), method=method, rtol=rtol, atol=atol)
-    if not sol.success:   # pragma: no cover - reported, never silently used
+    if not sol.success:  # pragma: no cover - reported, never silently used
         raise RuntimeError(f"solve_ivp failed: {sol.message}")
     return sol.y[:, -1].reshape(N, N)
 
