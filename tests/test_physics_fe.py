@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg as sla
-from amb_dynamics.floquet import monodromy
-from physics_helpers import constant_rates, load, matched_error
 from scipy.optimize import brentq
 
 from amb_dynamics import fe, motion, structure, system
+from amb_dynamics.floquet import monodromy
+from physics_helpers import constant_rates, load, matched_error
 
 FULL = "modal_cutoff=null"  # the FE checks use the full 28-DOF model
 V_PLANE = [0, 3, 4, 7]  # element positions of (v1, tz1, v2, tz2)
@@ -371,3 +371,31 @@ def test_formulation_identity_T22():
         diff = ld.A_terms.get(name, zero) - ls.A_terms.get(name, zero)
         assert np.abs(diff - expected[name]).max() <= 1e-12 * scale, name
         assert np.abs(expected[name]).max() == 0.0 or np.abs(diff).max() > 1e-6 * scale, name
+
+
+# ---- forcing of 4.7 (supports T10/T20): consistent loads reproduce the work of rigid virtual motions -----------
+def test_forcing_resultants_4_7():
+    """Hermite shapes hold rigid motions exactly, so sum f.delta_q equals the integral of the 4.7 loads."""
+    cfg = load(FULL)
+    model = structure.build_structure(cfg)
+    fem, L = model.fe, cfg.shaft.length
+    sec = fem.section
+    dp = fem.disks[0]
+    x_d = fem.node_x[dp.node - 1]
+    x = np.repeat(fem.node_x, 4)
+    dof = np.tile(np.arange(4), cfg.n_nodes)
+    trans_v, trans_w = (dof == 0) * 1.0, (dof == 1) * 1.0
+    rot_v = np.where(dof == 0, x, 0.0) + (dof == 3)  # v = x a, tz = a
+    rot_w = np.where(dof == 1, x, 0.0) - (dof == 2)  # w = x b, ty = -b
+    inertia = sec.rho_A * L**3 / 3 + sec.i_d * L + dp.m * x_d**2 + dp.Id
+    F = model.forcing  # columns a1..a4
+    expected = {
+        # (force v, moment v-plane, force w, moment w-plane) per unit a_j
+        0: (-(sec.rho_A * L**2 / 2 + dp.m * x_d), -inertia, 0.0, 0.0),
+        1: (0.0, 0.0, sec.rho_A * L**2 / 2 + dp.m * x_d, inertia),
+        2: (0.0, 0.0, 0.0, sec.i_p * L + dp.Ip),
+        3: (0.0, sec.i_p * L + dp.Ip, 0.0, 0.0),
+    }
+    for j, values in expected.items():
+        got = [F[:, j] @ shape for shape in (trans_v, rot_v, trans_w, rot_w)]
+        np.testing.assert_allclose(got, values, rtol=1e-12, atol=1e-12 * inertia, err_msg=f"a{j + 1}")
