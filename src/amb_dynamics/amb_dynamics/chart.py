@@ -21,6 +21,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .floquet import GAUSS_C, SQRT3
+from .matrix_exp import expm_stack
 from .motion import BaseMotion
 from .system import COEFFICIENTS, ClosedLoop, coefficient_values, periodic_system
 
@@ -106,9 +107,9 @@ class _Row:
         basis = np.concatenate([ps.A0[None], ps.A_stack]) / s[None, :, None] * s[None, None, :]
         k = basis.shape[0]
         pairs = [(i, j) for i in range(k) for j in range(i + 1, k)]
-        comm = np.array([basis[i] @ basis[j] - basis[j] @ basis[i] for i, j in pairs]).reshape(
-            len(pairs), *basis[0].shape
-        )
+        comm = np.array([basis[i] @ basis[j] - basis[j] @ basis[i] for i, j in pairs])
+        d = basis.shape[-1]
+        mats = np.concatenate([basis, comm.reshape(len(pairs), d, d)]).reshape(-1, d * d)
         h = T / N
         tk = h * np.arange(N)
         t1, t2 = tk + GAUSS_C[0] * h, tk + GAUSS_C[1] * h
@@ -119,10 +120,10 @@ class _Row:
             c2 = np.vstack([np.ones(N), self._coef(mo, t2, ps.names)])
             lin = (h / 2) * (c1 + c2)  # (k, N)
             com = np.array([c2[i] * c1[j] - c2[j] * c1[i] for i, j in pairs]).reshape(len(pairs), N)
-            Om = np.einsum("kn,kxy->nxy", lin, basis) + (SQRT3 / 12) * h * h * np.einsum("pn,pxy->nxy", com, comm)
-            exps.append(Om)
-        E = sla.expm(np.concatenate(exps)).reshape(len(self.nodes), N, *basis[0].shape)
-        S = E if self.W is None else np.einsum("aj,jnxy->anxy", self.W, E)
+            weights = np.vstack([lin, (SQRT3 / 12) * h * h * com])  # Omega_4 = sum_m weights[m, n] * mats[m]
+            exps.append((weights.T @ mats).reshape(N, d, d))
+        E = expm_stack(np.concatenate(exps)).reshape(len(self.nodes), N, d, d)
+        S = E if self.W is None else (self.W @ E.reshape(len(self.nodes), -1)).reshape(-1, N, d, d)
         P = _tree_product(S)
         mu = np.linalg.eigvals(P)
         i = np.argmax(np.abs(mu), axis=1)

@@ -240,6 +240,7 @@ class VerdictPolicy:
     hysteresis: float = 0.02
     z: float = 3.0
     confirm: int = 2
+    require_resolved: bool = True
 
     def __post_init__(self):
         if not (self.margin >= 0 and self.hysteresis >= 0 and self.z >= 0 and self.confirm >= 1):
@@ -264,7 +265,7 @@ class InstabilityFlag:
         rho, sd = fit.rho, fit.rho_std
         lo, hi = rho - p.z * sd, rho + p.z * sd
         if not self.unstable:
-            raise_ok = fit.resolved and rho >= 1.0 + p.margin and lo > 1.0
+            raise_ok = (fit.resolved or not p.require_resolved) and rho >= 1.0 + p.margin and lo > 1.0
             self._up = self._up + 1 if raise_ok else 0
             if self._up >= p.confirm:
                 self.unstable, self._up = True, 0

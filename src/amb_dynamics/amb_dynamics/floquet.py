@@ -11,9 +11,9 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 import numpy as np
-import scipy.linalg as sla
 
 from .errors import InputError
+from .matrix_exp import expm_stack
 from .motion import BaseMotion
 from .sampled import SampledLoop
 from .system import PeriodicSystem
@@ -95,7 +95,7 @@ def magnus_step_matrices(ps: PeriodicSystem, T: float, N: int, t0: float = 0.0) 
     A1 = ps.A(tk + GAUSS_C[0] * h)
     A2 = ps.A(tk + GAUSS_C[1] * h)
     Om = (h / 2.0) * (A1 + A2) + (SQRT3 / 12.0) * h * h * (A2 @ A1 - A1 @ A2)
-    return sla.expm(Om)
+    return expm_stack(Om)
 
 
 def chain_product(steps: np.ndarray) -> np.ndarray:
