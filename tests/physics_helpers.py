@@ -1,7 +1,7 @@
 """Shared helpers of the physics verification tests (PHYSICS.md section 8).
 
-Only generic numerics live here (set matching, companion forms, a validation ODE solver, config loading);
-every physical quantity under test comes from the core's production code paths.
+Generic numerics (set matching, companion forms, a validation ODE solver, config loading) and the independent
+nonlinear Newton-Euler disk of T10; every quantity under test comes from the core's production code paths.
 """
 
 from __future__ import annotations
@@ -93,3 +93,29 @@ def dop853_monodromy(A_of_t, N: int, T: float, rtol: float = 1e-10, atol: float 
     sol = solve_ivp(rhs, (0.0, T), np.eye(N).ravel(), method="DOP853", rtol=rtol, atol=atol)
     assert sol.success, sol.message
     return sol.y[:, -1].reshape(N, N)
+
+
+def newton_euler_tilt(x, Om, dOm, spin, Id, Ip, kt):
+    """Nonlinear Newton-Euler disk on a tilt spring kt in the moving base (PHYSICS.md 8.1 T10).
+
+    x = (ty, tz, ty', tz') (rad, rad/s); Om, dOm (3,) base rates; spin = phi_dot.  Returns x' (4,).
+    """
+    ty, tz, dty, dtz = x
+    cy, sy, cz, sz = np.cos(ty), np.sin(ty), np.cos(tz), np.sin(tz)
+    a = np.array([cy * cz, sz, -sy * cz])
+    a_y, a_z = np.array([-sy * cz, 0.0, -cy * cz]), np.array([-cy * sz, cz, sy * sz])
+    a_yy, a_yz, a_zz = (
+        np.array([-cy * cz, 0.0, sy * cz]),
+        np.array([sy * sz, 0.0, cy * sz]),
+        np.array([-cy * cz, -sz, sy * cz]),
+    )
+    da_B = a_y * dty + a_z * dtz
+    da_I = da_B + np.cross(Om, a)
+    w_perp = np.cross(a, da_I)
+    ws = Om @ a + spin
+    M_s = kt * np.cross(a, [1.0, 0.0, 0.0])
+    dda_I = (Ip * ws * w_perp - np.cross(a, M_s)) / Id - (da_I @ da_I) * a
+    dda_B = dda_I - 2 * np.cross(Om, da_B) - np.cross(dOm, a) - np.cross(Om, np.cross(Om, a))
+    quad = a_yy * dty**2 + 2 * a_yz * dty * dtz + a_zz * dtz**2
+    ddt = np.linalg.solve(np.column_stack([a_y, a_z])[1:], (dda_B - quad)[1:])  # Y, Z rows
+    return np.array([dty, dtz, *ddt])

@@ -24,6 +24,7 @@ from physics_helpers import (
     even_quartic_roots,
     load,
     matched_error,
+    newton_euler_tilt,
     off_block,
     p0_stiffness,
     quadratic_eigenvalues,
@@ -345,29 +346,6 @@ def test_pitch_mathieu_sweep_T9():
 
 
 # ---- T10: the derived tilt block is the linearisation of the nonlinear Newton-Euler disk ----------------------
-def _newton_euler_tilt(x, Om, dOm, spin, Id, Ip, kt):
-    """(ty', tz', ty'', tz'') of the nonlinear disk on a tilt spring kt in the moving base (PHYSICS.md 8.1 T10)."""
-    ty, tz, dty, dtz = x
-    cy, sy, cz, sz = np.cos(ty), np.sin(ty), np.cos(tz), np.sin(tz)
-    a = np.array([cy * cz, sz, -sy * cz])
-    a_y, a_z = np.array([-sy * cz, 0.0, -cy * cz]), np.array([-cy * sz, cz, sy * sz])
-    a_yy, a_yz, a_zz = (
-        np.array([-cy * cz, 0.0, sy * cz]),
-        np.array([sy * sz, 0.0, cy * sz]),
-        np.array([-cy * cz, -sz, sy * cz]),
-    )
-    da_B = a_y * dty + a_z * dtz
-    da_I = da_B + np.cross(Om, a)
-    w_perp = np.cross(a, da_I)
-    ws = Om @ a + spin
-    M_s = kt * np.cross(a, [1.0, 0.0, 0.0])
-    dda_I = (Ip * ws * w_perp - np.cross(a, M_s)) / Id - (da_I @ da_I) * a
-    dda_B = dda_I - 2 * np.cross(Om, da_B) - np.cross(dOm, a) - np.cross(Om, np.cross(Om, a))
-    quad = a_yy * dty**2 + 2 * a_yz * dty * dtz + a_zz * dtz**2
-    ddt = np.linalg.solve(np.column_stack([a_y, a_z])[1:], (dda_B - quad)[1:])  # Y, Z rows
-    return np.array([dty, dtz, *ddt])
-
-
 @pytest.mark.parametrize(("overrides", "ok"), [((), True), (SEED, False)], ids=["T10", "T10-seed"])
 def test_newton_euler_linearisation_T10(overrides, ok):
     rng = np.random.default_rng(10)
@@ -383,8 +361,8 @@ def test_newton_euler_linearisation_T10(overrides, ok):
         jac = np.column_stack(
             [
                 (
-                    _newton_euler_tilt(h * e, Om, dOm, spin, Id, Ip, kt)
-                    - _newton_euler_tilt(-h * e, Om, dOm, spin, Id, Ip, kt)
+                    newton_euler_tilt(h * e, Om, dOm, spin, Id, Ip, kt)
+                    - newton_euler_tilt(-h * e, Om, dOm, spin, Id, Ip, kt)
                 )
                 / (2 * h)
                 for e in np.eye(4)
@@ -407,7 +385,7 @@ def test_newton_euler_forcing_T10():
         spin = rng.uniform(-5, 5)
         Id, Ip, kt = rng.uniform(0.5, 2.0), rng.uniform(0.0, 3.0), rng.uniform(2.0, 20.0)
         loop = system.closed_loop(structure.rigid_disk_model(1.0, Id, Ip, p0_stiffness(kt=kt), 0.0, cfg=cfg), cfg)
-        field = _newton_euler_tilt(np.zeros(4), Om, dOm, spin, Id, Ip, kt)
+        field = newton_euler_tilt(np.zeros(4), Om, dOm, spin, Id, Ip, kt)
         b = loop.Bf @ system.forcing_from_rates(Om, dOm, spin)  # x' = A x + b, b = [0; M^-1 f]
         assert not b[TRANSLATION].any()  # x_d = 0: no translational forcing
         worst = max(worst, np.abs(b[TILT] - field).max() / max(np.abs(field).max(), 1.0))
