@@ -6,6 +6,10 @@ from pathlib import Path
 
 import pytest
 
+# Small matrices everywhere: BLAS threads only oversubscribe the 2 cores (set before numpy is imported).
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("MPLBACKEND", "Agg")
 

@@ -18,10 +18,9 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
 from .floquet import GAUSS_C, SQRT3
-from .matrix_exp import expm_stack
+from .matrix_exp import balancing_scale, expm_stack
 from .motion import BaseMotion
 from .system import COEFFICIENTS, ClosedLoop, coefficient_values, periodic_system
 
@@ -97,8 +96,7 @@ class _Row:
         self.nodes = amplitudes.copy() if amplitudes.size <= nodes or hi == lo else _cheb_nodes(lo, hi, nodes)
         self.W = _bary_weights(self.nodes, amplitudes) if self.nodes is not amplitudes else None
         # diagonal similarity from the constant part (multipliers are invariant)
-        _, (scale, _) = sla.matrix_balance(loop.A0, permute=False, separate=True)
-        self.scale = scale
+        self.scale = balancing_scale(loop.A0)
 
     def evaluate(self, omega: float) -> tuple[np.ndarray, np.ndarray]:
         ps = periodic_system(self.loop, BaseMotion.single(self.kind, 1.0, omega), self.spin)

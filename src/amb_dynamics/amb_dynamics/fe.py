@@ -202,6 +202,19 @@ def disk_matrices(dp: DiskProps, seed_disk_H: str = "literal") -> dict[str, np.n
     }
 
 
+def disk_forcing(dp: DiskProps, xd: float) -> np.ndarray:
+    """(4, 4) load shapes of a disk at axial position xd (m) on [v, w, theta_y, theta_z] for a1..a4 (4.7).
+
+    a1 = dOz + Ox Oy, a2 = dOy - Ox Oz, a3 = Phi Oz, a4 = Phi Oy.
+    """
+    f = np.zeros((4, 4))
+    f[0, 0], f[3, 0] = -dp.m * xd, -dp.Id
+    f[1, 1], f[2, 1] = dp.m * xd, -dp.Id
+    f[2, 2] = -dp.Ip
+    f[3, 3] = dp.Ip
+    return f
+
+
 MATRIX_NAMES = (
     "M",
     "Mt",
@@ -283,12 +296,5 @@ def assemble(cfg: RotorConfig) -> FEModel:
         dm = disk_matrices(dp, cfg.seed_disk_H)
         for name in MATRIX_NAMES:
             mats[name][idx, idx] += dm[name]
-        xd = node_x[dp.node - 1]
-        i0 = 4 * (dp.node - 1)
-        forcing[i0 + 0, 0] += -dp.m * xd
-        forcing[i0 + 3, 0] += -dp.Id
-        forcing[i0 + 1, 1] += dp.m * xd
-        forcing[i0 + 2, 1] += -dp.Id
-        forcing[i0 + 2, 2] += -dp.Ip
-        forcing[i0 + 3, 3] += dp.Ip
+        forcing[idx] += disk_forcing(dp, node_x[dp.node - 1])
     return FEModel(mats=mats, forcing=forcing, node_x=node_x, disks=disks, section=sec)

@@ -13,7 +13,7 @@ from fractions import Fraction
 import numpy as np
 
 from .errors import InputError
-from .matrix_exp import expm_stack
+from .matrix_exp import balancing_scale, expm_stack
 from .motion import BaseMotion
 from .sampled import SampledLoop
 from .system import PeriodicSystem
@@ -88,12 +88,24 @@ def sort_multipliers(mu: np.ndarray) -> np.ndarray:
     return mu[np.lexsort((-mu.imag, -np.abs(mu)))]
 
 
-def magnus_step_matrices(ps: PeriodicSystem, T: float, N: int, t0: float = 0.0) -> np.ndarray:
-    """exp(Omega_4) of the N Magnus steps over [t0, t0+T], shape (N, dim, dim)."""
+def magnus_step_matrices(
+    ps: PeriodicSystem,
+    T: float,
+    N: int,
+    t0: float = 0.0,
+    scale: np.ndarray | None = None,
+) -> np.ndarray:
+    """exp(Omega_4) of the N Magnus steps over [t0, t0+T], shape (N, dim, dim).
+
+    With ``scale`` (a balancing vector d), the steps are returned in the balanced coordinates D^-1 x.
+    """
     h = T / N
     tk = t0 + h * np.arange(N)
     A1 = ps.A(tk + GAUSS_C[0] * h)
     A2 = ps.A(tk + GAUSS_C[1] * h)
+    if scale is not None:
+        A1 = A1 / scale[:, None] * scale[None, :]
+        A2 = A2 / scale[:, None] * scale[None, :]
     Om = (h / 2.0) * (A1 + A2) + (SQRT3 / 12.0) * h * h * (A2 @ A1 - A1 @ A2)
     return expm_stack(Om)
 
@@ -115,7 +127,9 @@ def monodromy(ps: PeriodicSystem, N: int, T: float | None = None) -> np.ndarray:
     T = ps.period if T is None else T
     if T is None:
         raise InputError("this base motion has no period: no Floquet analysis (use the Lyapunov exponent)")
-    return chain_product(magnus_step_matrices(ps, T, N))
+    d = balancing_scale(ps.A0)
+    P = chain_product(magnus_step_matrices(ps, T, N, scale=d))
+    return P * d[:, None] / d[None, :]  # back from the balanced coordinates
 
 
 def floquet(

@@ -13,7 +13,7 @@ import scipy.linalg as sla
 
 from .config import RotorConfig
 from .errors import InputError
-from .fe import DiskProps, FEModel, assemble, dof_index
+from .fe import DiskProps, FEModel, Section, assemble, disk_forcing, disk_matrices, dof_index
 
 AXIS_NAMES = ("y", "z")
 
@@ -137,7 +137,6 @@ def rigid_disk_model(
     K_B : (4, 4) stiffness on [v, w, theta_y, theta_z] (N/m, N m/rad); c : base-fixed damping on v, w (N s/m).
     The damper enters as an ideal-derivative 'bearing' on v and w (ki kd = c, ki kp + ks = 0).
     """
-    from .fe import FEModel, Section, disk_matrices  # local: only this test-scale model needs them
 
     dp = DiskProps(1, m, Ip, Id)
     dm = disk_matrices(dp, cfg.seed_disk_H if cfg is not None else "literal")
@@ -146,7 +145,7 @@ def rigid_disk_model(
     mats["K_G"] = np.zeros((4, 4))
     fe = FEModel(
         mats=mats,
-        forcing=np.zeros((4, 4)),
+        forcing=disk_forcing(dp, 0.0),  # the disk sits at the base-rotation centre x = 0
         node_x=np.zeros(1),
         disks=(dp,),
         section=Section(0.0, 0.0, 0.0, 0.0, np.inf, 0.0),

@@ -21,11 +21,15 @@ from .structure import StructuralModel
 COEFFICIENTS = ("Phi", "Ox", "dOx", "Ox2", "OxPhi", "Oy2", "Oz2", "OyOz", "dPhi", "Oyz2")
 
 
-def coefficients_from_rates(Om: np.ndarray, dOm: np.ndarray, spin: float) -> np.ndarray:
-    """c_j for base rates Omega, dOmega (3,) or (3, k) and spin phi_dot (rad/s): (len(COEFFICIENTS), ...)."""
+def coefficients_from_rates(Om: np.ndarray, dOm: np.ndarray, spin, spin_accel=0.0) -> np.ndarray:
+    """c_j for base rates Omega, dOmega (3,) or (3, k), spin phi_dot (rad/s) and phi_ddot (rad/s^2).
+
+    Returns shape (len(COEFFICIENTS), ...).  Phi = phi_dot + Omega_x, dPhi = phi_ddot + dOmega_x.
+    """
     Ox, Oy, Oz = Om
     Phi = spin + Ox
-    return np.array([Phi, Ox, dOm[0], Ox * Ox, Ox * Phi, Oy * Oy, Oz * Oz, Oy * Oz, dOm[0], Oy * Oy + Oz * Oz])
+    dPhi = spin_accel + dOm[0]
+    return np.array([Phi, Ox, dOm[0], Ox * Ox, Ox * Phi, Oy * Oy, Oz * Oz, Oy * Oz, dPhi, Oy * Oy + Oz * Oz])
 
 
 def forcing_from_rates(Om: np.ndarray, dOm: np.ndarray, spin: float) -> np.ndarray:
