@@ -1,0 +1,110 @@
+"""Loss accounting: messages the recorder received vs messages the publishers say they published.
+
+Convention (docs/bags.md): every node publishes on /diagnostics a ``diagnostic_msgs/DiagnosticStatus`` whose
+``values`` include, for each topic it publishes, ``KeyValue(key="published <topic>", value="<count>")``: the
+integer number of messages published on that topic so far.  The recorder keeps the latest count per
+(status name, topic) and sums over statuses; per topic
+
+    lost = max(0, published - received),     extra = max(0, received - published)
+
+``extra`` counts messages received after the last report (or from publishers that do not report).  A topic
+that nobody reports has ``published = None`` and unknown loss.  Counts published before the recorder subscribed
+are counted as lost: start the recorder first.
+"""
+
+from __future__ import annotations
+
+import json
+
+DIAGNOSTICS_TOPIC = "/diagnostics"
+DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
+KEY_PREFIX = "published "
+CUSTOM_KEY = "amb_bag.loss"
+CUSTOM_TOTAL_KEY = "amb_bag.lost_total"
+
+
+def _topic(name: str) -> str:
+    name = name.strip()
+    return name if name.startswith("/") else "/" + name
+
+
+class LossTracker:
+    """Latest ``published <topic>`` count per (status name, topic), from /diagnostics messages."""
+
+    def __init__(self):
+        self.reported: dict[tuple[str, str], int] = {}
+        self.reports = 0
+
+    def update_from_cdr(self, data: bytes) -> None:
+        """Parse one serialized DiagnosticArray (bad messages are ignored: they are recorded anyway)."""
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.serialization import deserialize_message
+
+        try:
+            msg = deserialize_message(data, DiagnosticArray)
+        except Exception:  # rclpy raises plain RuntimeError-like errors for undecodable CDR
+            return
+        self.update((s.name, ((kv.key, kv.value) for kv in s.values)) for s in msg.status)
+
+    def update(self, statuses) -> None:
+        """``statuses``: iterable of (status name, iterable of (key, value)) pairs."""
+        for name, values in statuses:
+            for key, value in values:
+                if not key.startswith(KEY_PREFIX):
+                    continue
+                try:
+                    count = int(value)
+                except ValueError:
+                    continue
+                if count >= 0:
+                    self.reported[(name, _topic(key[len(KEY_PREFIX) :]))] = count
+                    self.reports += 1
+
+    def published(self) -> dict[str, int]:
+        """Sum over reporting statuses of the latest count, per topic."""
+        total: dict[str, int] = {}
+        for (_, topic), count in self.reported.items():
+            total[topic] = total.get(topic, 0) + count
+        return total
+
+    def table(self, received: dict[str, int]) -> dict[str, dict]:
+        """Per topic: received, published (None if unreported), lost and extra (None if unknown)."""
+        return loss_table(received, self.published())
+
+
+def loss_table(received: dict[str, int], published: dict[str, int]) -> dict[str, dict]:
+    """Per-topic loss rows from received and published counts (see the module docstring)."""
+    rows = {}
+    for topic in sorted(set(received) | set(published)):
+        got, sent = received.get(topic, 0), published.get(topic)
+        rows[topic] = {
+            "received": got,
+            "published": sent,
+            "lost": None if sent is None else max(0, sent - got),
+            "extra": None if sent is None else max(0, got - sent),
+        }
+    return rows
+
+
+def total_lost(rows: dict[str, dict]) -> int:
+    return sum(r["lost"] or 0 for r in rows.values())
+
+
+def custom_data(rows: dict[str, dict]) -> dict[str, str]:
+    """The metadata.yaml custom_data entries (strings, as rosbag2 requires) for the loss rows."""
+    return {CUSTOM_KEY: json.dumps(rows, separators=(",", ":")), CUSTOM_TOTAL_KEY: str(total_lost(rows))}
+
+
+def format_table(rows: dict[str, dict]) -> str:
+    """Human-readable loss table."""
+    if not rows:
+        return "loss: no topics"
+    width = max(len(t) for t in rows)
+    lines = [f"{'topic':<{width}}  {'received':>9}  {'published':>9}  {'lost':>7}  {'extra':>6}"]
+    for topic, r in rows.items():
+        sent = "?" if r["published"] is None else str(r["published"])
+        lost = "?" if r["lost"] is None else str(r["lost"])
+        extra = "?" if r["extra"] is None else str(r["extra"])
+        lines.append(f"{topic:<{width}}  {r['received']:>9}  {sent:>9}  {lost:>7}  {extra:>6}")
+    lines.append(f"lost in total: {total_lost(rows)}")
+    return "\n".join(lines)

@@ -1,0 +1,331 @@
+"""Recorder node: every topic (or a list) to a rosbag2-layout MCAP bag, raw, with loss accounting.
+
+``amb-bag record -o DIR`` here, ``ros2 run amb_bag record -o DIR`` with a ROS install.  The recorder
+
+- scans the ROS graph every ``--discovery-interval`` seconds and subscribes to each new topic that has a
+  publisher (late publishers are found the same way);
+- subscribes **raw** (serialized CDR bytes, never deserialized) with a QoS matched to the offered profiles
+  (reliable / transient-local only if every publisher is, as rosbag2 does) and KEEP_ALL history, so that a
+  reliable publisher is slowed down rather than a sample dropped when the recorder falls behind;
+- does not use an rclpy executor: one wait set over all subscriptions, and each ready subscription is drained
+  with ``take_message`` (about 7x faster than executor callbacks, measured); messages go straight into the
+  chunked MCAP writer, with log_time = DDS reception time and publish_time = DDS source time (as rosbag2);
+- reads /diagnostics ``published <topic>`` counts for the loss table (:mod:`amb_bag.loss`);
+- every ``--flush-interval`` seconds finishes the open chunk and writes a progress file, so that a
+  ``kill -9`` loses at most that interval (``amb-bag check`` recovers the rest);
+- on SIGINT/SIGTERM (or after ``--duration``) drains what is pending, writes the last chunk, the summary and
+  metadata.yaml, prints the loss table, and exits 0.
+
+Its stdout lines ``amb-bag record: subscribed <topic> [<type>]`` tell a supervisor (``amb-rig``) when a topic
+is being recorded.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import signal
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from . import msgdefs
+from .errors import BagError
+from .loss import DIAGNOSTICS_TOPIC, LossTracker, custom_data, format_table
+from .qos import profile_to_dict, request_for_offers
+from .writer import DEFAULT_CHUNK_SIZE, BagWriter
+
+DRAIN_BATCH = 2000  # messages taken from one subscription before the others get a turn
+WAIT_MAX_S = 0.05  # longest wait, so that signals, discovery and checkpoints are served promptly
+PREFIX = "amb-bag record:"
+
+
+@dataclass
+class RecordOptions:
+    """What to record and how (see ``amb-bag record --help``)."""
+
+    output: Path
+    topics: list[str] | None = None
+    include_hidden: bool = False
+    compression: str = "zstd"
+    chunk_size: int = DEFAULT_CHUNK_SIZE
+    split_size_mb: float | None = None
+    split_duration_s: float | None = None
+    discovery_interval_s: float = 0.1
+    flush_interval_s: float = 1.0
+    qos_depth: int | None = None
+    duration_s: float | None = None
+    debug_delay_s: float = 0.0  # test-only: sleep per message, to show that loss is reported
+    exclude: list[str] = field(default_factory=list)
+
+
+def _hidden(topic: str) -> bool:
+    return any(part.startswith("_") for part in topic.split("/"))
+
+
+class Recorder:
+    """Subscriptions, the drain loop and the writer of one recording (needs an initialised rclpy context)."""
+
+    def __init__(self, node, opts: RecordOptions, writer: BagWriter, log=print):
+        from rclpy.impl.implementation_singleton import rclpy_implementation
+
+        self._rclpy = rclpy_implementation
+        self.node, self.opts, self.writer, self.log = node, opts, writer, log
+        self.loss = LossTracker()
+        self.subs: list[_Sub] = []
+        self.by_topic: dict[str, _Sub] = {}
+        self.ignored: set[str] = set()
+        self.stop_requested = False
+        self._wait_set = None
+        self._wanted = {_normalise(t) for t in opts.topics} if opts.topics else None
+        self._exclude = [re.compile(p) for p in opts.exclude]
+
+    # -- discovery ------------------------------------------------------------------------------------------
+    def wanted(self, topic: str) -> bool:
+        if self._wanted is not None:
+            return topic in self._wanted
+        if _hidden(topic) and not self.opts.include_hidden:
+            return False
+        return not any(p.search(topic) for p in self._exclude)
+
+    def discover(self) -> None:
+        """Subscribe to new topics that have publishers; widen QoS if an incompatible publisher joined."""
+        for topic, types in self.node.get_topic_names_and_types():
+            if topic in self.ignored or not self.wanted(topic):
+                continue
+            sub = self.by_topic.get(topic)
+            if sub is not None:
+                if self.node.count_publishers(topic) != sub.publishers:
+                    self._revisit(sub)
+                continue
+            if len(types) != 1:
+                self._ignore(topic, f"has several types {types}")
+                continue
+            infos = self._publishers(topic)
+            if infos:
+                self._subscribe(topic, types[0], infos)
+
+    def _publishers(self, topic: str) -> list:
+        """Publishers of ``topic`` other than this recorder's own node (its /parameter_events)."""
+        me = (self.node.get_name(), self.node.get_namespace())
+        return [i for i in self.node.get_publishers_info_by_topic(topic) if (i.node_name, i.node_namespace) != me]
+
+    def _ignore(self, topic: str, why: str) -> None:
+        self.ignored.add(topic)
+        self.log(f"{PREFIX} not recording {topic}: {why}", file=sys.stderr)
+
+    def _subscribe(self, topic: str, type_name: str, infos) -> None:
+        try:
+            cls = msgdefs.message_class(type_name)
+            msgdefs.full_text(type_name)
+        except BagError as exc:
+            self._ignore(topic, str(exc))
+            return
+        profiles = [profile_to_dict(i.qos_profile) for i in infos]
+        type_hash = str(infos[0].topic_type_hash)
+        tid = self.writer.add_topic(topic, type_name, profiles, type_hash if type_hash.startswith("RIHS") else "")
+        sub = _Sub(topic, type_name, cls, tid, topic == DIAGNOSTICS_TOPIC, profiles)
+        sub.publishers = self.node.count_publishers(topic)
+        self._create(sub)
+        self.subs.append(sub)
+        self.by_topic[topic] = sub
+        self._wait_set = None
+        self.log(f"{PREFIX} subscribed {topic} [{type_name}]", flush=True)
+
+    def _create(self, sub: _Sub) -> None:
+        qos = request_for_offers(sub.offers, keep_all=self.opts.qos_depth is None, depth=self.opts.qos_depth or 1)
+        sub.rel_dur = (qos.reliability, qos.durability)
+        sub.handle_owner = self.node.create_subscription(sub.cls, sub.topic, _ignore_message, qos, raw=True)
+        sub.handle = sub.handle_owner.handle
+
+    def _revisit(self, sub: _Sub) -> None:
+        infos = self._publishers(sub.topic)
+        sub.publishers = self.node.count_publishers(sub.topic)
+        offers = sub.offers + [profile_to_dict(i.qos_profile) for i in infos]
+        qos = request_for_offers(offers, keep_all=True)
+        if (qos.reliability, qos.durability) == sub.rel_dur:
+            return
+        # A publisher joined that the current subscription cannot match: widen the QoS (the bag keeps the
+        # channel's original offered profiles, as rosbag2 does). Messages pending in the old one are kept.
+        self._drain(sub, limit=None)
+        self.node.destroy_subscription(sub.handle_owner)
+        sub.offers = offers
+        self._create(sub)
+        self._wait_set = None
+        self.log(f"{PREFIX} {sub.topic}: new publisher QoS, subscription widened", file=sys.stderr)
+
+    # -- the hot path -----------------------------------------------------------------------------------------
+    def _drain(self, sub: _Sub, limit: int | None = DRAIN_BATCH) -> int:
+        take, cls, write, tid = sub.handle.take_message, sub.cls, self.writer.write, sub.tid
+        delay, n = self.opts.debug_delay_s, 0
+        while limit is None or n < limit:
+            taken = take(cls, True)
+            if taken is None:
+                break
+            data, info = taken
+            recv = info["received_timestamp"] or time.time_ns()
+            write(tid, recv, data, info["source_timestamp"] or recv, info["publication_sequence_number"] & 0xFFFFFFFF)
+            if sub.is_diagnostics:
+                self.loss.update_from_cdr(data)
+            n += 1
+            if delay:
+                time.sleep(delay)
+        return n
+
+    def _wait_and_drain(self, timeout_s: float) -> int:
+        if not self.subs:
+            time.sleep(timeout_s)
+            return 0
+        if self._wait_set is None:
+            self._wait_set = self._rclpy.WaitSet(len(self.subs), 0, 0, 0, 0, 0, self.node.context.handle)
+        ws = self._wait_set
+        ws.clear_entities()
+        for sub in self.subs:
+            ws.add_subscription(sub.handle)
+        ws.wait(int(timeout_s * 1e9))
+        ready = ws.get_ready_entities("subscription")
+        return sum(self._drain(sub) for sub in self.subs if sub.handle.pointer in ready)
+
+    # -- loop, checkpoints, summary -------------------------------------------------------------------------
+    def received(self) -> dict[str, int]:
+        return {t.name: t.message_count for t in self.writer.topics}
+
+    def checkpoint(self) -> None:
+        self.writer.checkpoint({"received": self.received(), "published": self.loss.published(),
+                                "time_ns": time.time_ns()})  # fmt: skip
+
+    def spin(self) -> None:
+        """Record until :attr:`stop_requested` (set by a signal) or the duration elapses."""
+        now = time.monotonic()
+        end = now + self.opts.duration_s if self.opts.duration_s else float("inf")
+        next_scan = next_flush = now
+        while not self.stop_requested and now < end:
+            if now >= next_scan:
+                self.discover()
+                next_scan = now + self.opts.discovery_interval_s
+            if now >= next_flush:
+                self.checkpoint()
+                next_flush = now + self.opts.flush_interval_s
+            self._wait_and_drain(max(0.0, min(WAIT_MAX_S, next_scan - now, next_flush - now, end - now)))
+            now = time.monotonic()
+        # Take what is already delivered, then a last short wait for messages still in flight.
+        while self._wait_and_drain(0.02):
+            pass
+
+    def finish(self) -> dict:
+        """Close the bag with the loss table in custom_data; returns the loss rows."""
+        rows = {t: r for t, r in self.loss.table(self.received()).items() if self.wanted(t)}
+        self.writer.close(custom_data(rows))
+        return rows
+
+
+@dataclass(eq=False)
+class _Sub:
+    topic: str
+    type_name: str
+    cls: type
+    tid: int
+    is_diagnostics: bool
+    offers: list[dict]
+    publishers: int = 0
+    rel_dur: tuple = ()
+    handle_owner: object = None
+    handle: object = None
+
+
+def _ignore_message(_msg) -> None:
+    """Callback of the raw subscriptions; never called (no executor spins them)."""
+
+
+def _normalise(topic: str) -> str:
+    return topic if topic.startswith("/") else "/" + topic
+
+
+def add_record_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``amb-bag record`` / ``ros2 run amb_bag record``."""
+    parser.add_argument("-o", "--output", required=True, type=Path, help="bag folder to create (must not exist)")
+    parser.add_argument("--topics", nargs="+", metavar="TOPIC", help="record only these topics (default: all)")
+    parser.add_argument("--exclude", nargs="+", default=[], metavar="REGEX", help="skip topics matching these")
+    parser.add_argument("--include-hidden", action="store_true", help="also record hidden topics (/_...)")
+    parser.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd", help="chunk compression")
+    parser.add_argument("--chunk-size", type=int, default=DEFAULT_CHUNK_SIZE, metavar="BYTES",
+                        help=f"uncompressed chunk size (default {DEFAULT_CHUNK_SIZE}); a crash loses one")  # fmt: skip
+    parser.add_argument("--split-size", type=float, metavar="MB", help="start a new file after this many MB")
+    parser.add_argument("--split-duration", type=float, metavar="S", help="start a new file every S seconds")
+    parser.add_argument("--flush-interval", type=float, default=1.0, metavar="S",
+                        help="write the open chunk and a progress file every S seconds (default 1)")  # fmt: skip
+    parser.add_argument("--discovery-interval", type=float, default=0.1, metavar="S",
+                        help="graph scan period for new publishers (default 0.1 s)")  # fmt: skip
+    parser.add_argument("--qos-depth", type=int, metavar="N",
+                        help="KEEP_LAST N subscriptions instead of KEEP_ALL (may drop when behind)")  # fmt: skip
+    parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    parser.add_argument("--debug-delay-per-message", type=float, default=0.0, help=argparse.SUPPRESS)
+
+
+def options_from_args(args: argparse.Namespace) -> RecordOptions:
+    for name in ("chunk_size", "split_size", "split_duration", "flush_interval", "discovery_interval",
+                 "qos_depth", "duration"):  # fmt: skip
+        value = getattr(args, name)
+        if value is not None and not value > 0:
+            raise BagError(f"--{name.replace('_', '-')} must be positive, got {value}")
+    return RecordOptions(
+        output=args.output, topics=args.topics, include_hidden=args.include_hidden, compression=args.compression,
+        chunk_size=args.chunk_size, split_size_mb=args.split_size, split_duration_s=args.split_duration,
+        discovery_interval_s=args.discovery_interval, flush_interval_s=args.flush_interval,
+        qos_depth=args.qos_depth, duration_s=args.duration, debug_delay_s=args.debug_delay_per_message,
+        exclude=args.exclude,
+    )  # fmt: skip
+
+
+def record(opts: RecordOptions) -> dict:
+    """Run a recording until SIGINT/SIGTERM or ``duration``; returns the loss rows."""
+    from amb_ros.env import ensure_localhost_dds
+
+    ensure_localhost_dds()
+    writer = BagWriter(
+        opts.output, opts.compression, opts.chunk_size,
+        split_size=int(opts.split_size_mb * 1e6) if opts.split_size_mb else None,
+        split_duration_ns=int(opts.split_duration_s * 1e9) if opts.split_duration_s else None,
+    )  # fmt: skip
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node("amb_bag_recorder", enable_rosout=False, start_parameter_services=False)
+    recorder = Recorder(node, opts, writer)
+
+    def request_stop(_signum, _frame):
+        recorder.stop_requested = True
+
+    previous = {s: signal.signal(s, request_stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        print(f"{PREFIX} recording to {opts.output}", flush=True)
+        recorder.spin()
+        rows = recorder.finish()
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        node.destroy_node()
+        rclpy.try_shutdown()
+    total = writer.message_count
+    print(f"{PREFIX} wrote {total} messages on {len(writer.topics)} topics to {opts.output}")
+    print(format_table(rows), flush=True)
+    return rows
+
+
+def main(argv: list[str] | None = None) -> None:
+    """ROS executable ``record`` (``ros2 run amb_bag record -o DIR ...``)."""
+    from rclpy.utilities import remove_ros_args
+
+    argv = remove_ros_args(sys.argv if argv is None else ["record", *argv])[1:]
+    parser = argparse.ArgumentParser(prog="record", description="Record topics to a rosbag2-layout MCAP bag.")
+    add_record_arguments(parser)
+    try:
+        record(options_from_args(parser.parse_args(argv)))
+    except BagError as exc:
+        raise SystemExit(f"amb-bag record: {exc}") from None
+
+
+if __name__ == "__main__":
+    main()
