@@ -48,7 +48,7 @@ def campbell_figure(results: list[ModalResult], title: str, out: Path | str, max
     ax_f.grid(alpha=0.3)
     ax_d.set_xlabel("spin speed (rpm)")
     ax_d.set_ylabel("damping ratio (-)")
-    ax_d.set_yscale("symlog", linthresh=1e-3)
+    ax_d.set_yscale("symlog", linthresh=1e-4)
     ax_d.grid(alpha=0.3)
     fig.suptitle(title)
     fig.tight_layout()
