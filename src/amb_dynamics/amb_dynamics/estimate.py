@@ -24,6 +24,7 @@ Noise-free data of a linear loop are fitted exactly: the dominant multipliers co
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -36,7 +37,9 @@ REL_FLOOR = 1e-9  # singular values below this fraction of the data norm are rou
 NOISE_FACTOR = 1.5  # noise floor = this times the expected largest singular value of the noise matrix
 METHODS = ("ls", "tls")
 
-STABLE, UNSTABLE, MARGINAL, INSUFFICIENT = "stable", "unstable", "marginal", "insufficient_excitation"
+STABLE, UNSTABLE, MARGINAL = "stable", "unstable", "marginal"
+INSUFFICIENT, COLLECTING = "insufficient_excitation", "collecting"  # no information / too few periods yet
+TOO_FEW = "too few periods"
 
 
 @dataclass(frozen=True)
@@ -179,10 +182,10 @@ def fit_period_map(
     pairs = cols - 1
     empty = np.zeros(0, dtype=complex)
     if pairs < 1:
-        return MapFit(empty, np.inf, np.zeros(0), np.nan, pairs, 0, 0, 0, method, "too few periods")
+        return MapFit(empty, np.inf, np.zeros(0), np.nan, pairs, 0, 0, 0, method, TOO_FEW)
     free = pairs - forcing_regressors(forcing, pairs).shape[0]  # pairs left once the forcing is removed
     if free < 1 + min_dof:
-        return MapFit(empty, np.inf, np.zeros(0), np.nan, pairs, 0, 0, 0, method, "too few periods")
+        return MapFit(empty, np.inf, np.zeros(0), np.nan, pairs, 0, 0, 0, method, TOO_FEW)
     Q = _forcing_complement(pairs, forcing)
     Xm, Xp = Z[:, :-1] @ Q, Z[:, 1:] @ Q
     U, s, Vh = np.linalg.svd(Xm, full_matrices=False)
@@ -191,6 +194,7 @@ def fit_period_map(
     rank = min(signal_rank, max_rank, free - min_dof)
     if signal_rank == 0:
         return MapFit(empty, np.inf, s, floor, pairs, 0, 0, 0, method, "no transient above the noise floor")
+    Xm0, Xp0 = Xm, Xp
     if method == "tls":
         _, _, Wh = np.linalg.svd(np.vstack([Xm, Xp]), full_matrices=False)
         Pv = Wh[:rank].T @ Wh[:rank]
@@ -199,31 +203,36 @@ def fit_period_map(
     else:
         s_t = s
     Ur, sr, Vr = U[:, :rank], s_t[:rank], Vh[:rank].T
-    Yr = Ur.T @ Xp  # (rank, free): next-period data in the subspace
-    A = (Yr @ Vr) / sr  # DMD operator: U^T Xp V S^-1
+    A = (Ur.T @ Xp @ Vr) / sr  # DMD operator: U^T Xp V S^-1
     mu, vl, vr = sla.eig(A, left=True, right=True)
     order = np.lexsort((-mu.imag, -np.abs(mu)))
     mu = mu[order]
-    std = _rho_std(A, Yr, sr, Vr, vl[:, order[0]], vr[:, order[0]], mu[0], free - rank)
+    # the residual of the un-projected data in the subspace (TLS makes the projected residual zero)
+    std = _rho_std(A, Ur.T @ Xm0, Ur.T @ Xp0, vl[:, order[0]], vr[:, order[0]], mu[0], free - rank)
     return MapFit(mu, std, s, floor, pairs, signal_rank, rank, free - rank, method)
 
 
-def _rho_std(A, Yr, sr, Vr, wl, vr, mu0, dof) -> float:
+def _rho_std(A, Xr, Yr, wl, vr, mu0, dof) -> float:
     """First-order standard error of |mu0| from the least-squares covariance of A (rows independent).
 
-    With Xr = diag(s) V^T the LS covariance is Cov(A_ab, A_cd) = Se_ac (Xr Xr^T)^-1_bd = Se_ac delta_bd / s_b^2,
-    Se the residual covariance; d mu = wl^H dA vr / (wl^H vr), d|mu| = Re(conj(mu) d mu) / |mu|.
+    Xr, Yr : (rank, pairs) data in the subspace.  Cov(A_ab, A_cd) = Se_ac G_bd with Se the residual
+    covariance of Yr - A Xr and G = (Xr Xr^T)^-1; d mu = wl^H dA vr / (wl^H vr) and
+    d|mu| = Re(conj(mu) d mu) / |mu|.
     """
     if dof < 1:
         return float("inf")
-    E = Yr - A @ (sr[:, None] * Vr.T)
+    E = Yr - A @ Xr
     Se = E @ E.T / dof
+    try:
+        G = np.linalg.inv(Xr @ Xr.T)
+    except np.linalg.LinAlgError:
+        return float("inf")
     denom = np.vdot(wl, vr)
     if abs(denom) < 1e-14 * np.linalg.norm(wl) * np.linalg.norm(vr) or abs(mu0) == 0:
         return float("inf")
     dmu = np.outer(wl.conj(), vr) / denom  # d mu / d A_ab
     g = np.real(np.conj(mu0) * dmu) / abs(mu0)
-    var = float(np.sum((Se @ g) * g / sr[None, :] ** 2))
+    var = float(np.sum((Se @ g @ G) * g))
     return float(np.sqrt(max(var, 0.0)))
 
 
@@ -240,7 +249,7 @@ class VerdictPolicy:
     hysteresis: float = 0.02
     z: float = 3.0
     confirm: int = 2
-    require_resolved: bool = True
+    require_resolved: bool = False
 
     def __post_init__(self):
         if not (self.margin >= 0 and self.hysteresis >= 0 and self.z >= 0 and self.confirm >= 1):
@@ -261,7 +270,9 @@ class InstabilityFlag:
         p = self.policy
         if not fit.excited:
             self._up = self._down = 0
-            return UNSTABLE if self.unstable else INSUFFICIENT
+            if self.unstable:
+                return UNSTABLE
+            return COLLECTING if fit.reason == TOO_FEW else INSUFFICIENT
         rho, sd = fit.rho, fit.rho_std
         lo, hi = rho - p.z * sd, rho + p.z * sd
         if not self.unstable:
@@ -283,6 +294,4 @@ class InstabilityFlag:
             return 0.0
         if fit.rho_std == 0.0:
             return 1.0
-        from math import erf, sqrt
-
-        return float(0.5 * (1.0 + erf(abs(fit.rho - 1.0) / (fit.rho_std * sqrt(2.0)))))
+        return float(0.5 * (1.0 + math.erf(abs(fit.rho - 1.0) / (fit.rho_std * math.sqrt(2.0)))))
