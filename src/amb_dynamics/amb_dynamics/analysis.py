@@ -13,9 +13,9 @@ from . import plots
 from .chart import stability_chart
 from .config import RotorConfig, load_config
 from .errors import InputError
-from .floquet import floquet, hybrid_period, sampled_floquet, sampled_lyapunov
+from .floquet import aperiodic_exponents, floquet, hybrid_period, sampled_floquet, sampled_lyapunov
 from .modes import campbell_data, modes_at_speed
-from .motion import BaseMotion
+from .motion import BaseMotion, Harmonic
 from .newmark import disk_initial_state, fit_growth_rate, newmark
 from .sampled import SampledLoop
 from .structure import StructuralModel, build_structure
@@ -45,10 +45,35 @@ def describe(cfg: RotorConfig, model: StructuralModel) -> str:
     return f"{Path(cfg.source).name}: {cfg.shaft.elements} elements, {cfg.formulation}{red}"
 
 
-def motion_of(args) -> BaseMotion:
-    if args.motion in (None, "none"):
+def motion_of(args, cfg: RotorConfig) -> BaseMotion:
+    """The base motion of the command line, or the config's ``base_motion`` when --motion is not given."""
+    if args.motion is None:
+        return BaseMotion.from_config(cfg.base_motion)
+    if args.motion == "none":
         return BaseMotion()
+    if args.motion == "combined":
+        if not args.harmonic:
+            raise InputError("--motion combined needs at least one --harmonic axis:A:omega")
+        for axis, amp, freq, _ in args.harmonic:
+            BaseMotion.single(axis, amp, freq)  # validates each harmonic
+        return BaseMotion(tuple(Harmonic(*h) for h in args.harmonic), "combined")
     return BaseMotion.single(args.motion, args.amplitude, args.frequency)
+
+
+def motion_dict(motion: BaseMotion) -> dict:
+    return {
+        "kind": motion.kind,
+        "harmonics": [
+            {"axis": h.axis, "amplitude_rad": h.amplitude, "frequency_rad_s": h.frequency, "phase_rad": h.phase}
+            for h in motion.harmonics
+        ],
+    }
+
+
+def motion_text(motion: BaseMotion) -> str:
+    if motion.is_static:
+        return "base at rest"
+    return " + ".join(f"{h.axis} {h.amplitude:g} rad at {h.frequency:g} rad/s" for h in motion.harmonics)
 
 
 def run_modes(args):
@@ -86,11 +111,13 @@ def run_campbell(args):
 
 def run_floquet(args):
     s = setup(args)
-    motion = motion_of(args)
+    motion = motion_of(args, s.cfg)
     ps = periodic_system(s.loop, motion, s.cfg.spin_rad_s)
+    if motion.is_static:
+        raise InputError("a static base gives no periodic A(t): use `amb-dynamics modes` for its eigenvalues")
+    if ps.period is None:
+        return _aperiodic(s, ps, motion, args)
     if args.controller == "continuous":
-        if ps.period is None:
-            raise InputError("a static base gives no periodic A(t): use `amb-dynamics modes` for its eigenvalues")
         res = floquet(ps)
         data = res.to_dict(args.top)
     else:
@@ -112,14 +139,9 @@ def run_floquet(args):
         else:
             data = sampled_floquet(loop, motion, ps.period, snap=args.snap).to_dict(args.top)
         data["controller_rate_hz"] = 1.0 / loop.Ts
-    data.update(
-        model=describe(s.cfg, s.model),
-        controller=args.controller,
-        motion={"kind": args.motion, "amplitude_rad": args.amplitude, "frequency_rad_s": args.frequency},
-    )
+    data.update(model=describe(s.cfg, s.model), controller=args.controller, motion=motion_dict(motion))
     text = [
-        f"{data['model']}; {args.motion} A = {args.amplitude} rad, omega = {args.frequency} rad/s, "
-        f"{args.controller} controller",
+        f"{data['model']}; {motion_text(motion)}, {args.controller} controller",
         f"period {data['period_s']:.6g} s   max|mu| = {data['max_abs_multiplier']:.9f}   "
         f"{'STABLE' if data['stable'] else 'NOT STABLE'}   ({data['method']}, {data.get('steps', '-')} steps)",
     ]
@@ -127,6 +149,31 @@ def run_floquet(args):
         text.append(f"   mu = {z[0]:+.9f} {z[1]:+.9f}j   |mu| = {np.hypot(*z):.9f}")
     text += [f"   note: {n}" for n in data.get("notes", [])]
     return data, "\n".join(text)
+
+
+def _aperiodic(s: Setup, ps, motion: BaseMotion, args):
+    """Incommensurate harmonics: no monodromy; Lyapunov-type growth measures (PHYSICS.md 5)."""
+    if args.controller != "continuous":
+        raise InputError("an aperiodic base motion is analysed with the continuous controller only")
+    fastest = max(h.frequency for h in motion.harmonics)
+    data = aperiodic_exponents(ps, args.horizon, h=2 * np.pi / fastest / 64)
+    data.update(
+        model=describe(s.cfg, s.model),
+        controller=args.controller,
+        motion=motion_dict(motion),
+        period_s=None,
+        multipliers=None,
+        stable=bool(data["lyapunov_exponent_1_s"] < 0),
+        method="magnus4-lyapunov",
+        notes=["the harmonics are incommensurate: A(t) has no period"],
+    )
+    text = (
+        f"{data['model']}; {motion_text(motion)}: no period (incommensurate)\n"
+        f"largest Lyapunov exponent {data['lyapunov_exponent_1_s']:.6g} 1/s, finite-time exponent "
+        f"{data['ftle_1_s']:.6g} 1/s over {data['duration_s']:g} s, max ||Phi(t,0)|| = "
+        f"{data['max_transition_norm']:.4g}"
+    )
+    return data, text
 
 
 def run_chart(args):
@@ -153,7 +200,7 @@ def run_chart(args):
 
 def run_simulate(args):
     s = setup(args)
-    motion = motion_of(args)
+    motion = motion_of(args, s.cfg)
     ps = periodic_system(s.loop, motion, s.cfg.spin_rad_s)
     disk_node = s.cfg.disks[0].node if s.cfg.disks else s.cfg.n_nodes
     x0 = disk_initial_state(s.model, s.loop.N, disk_node)

@@ -39,13 +39,34 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON document on stdout")
 
 
-def _motion(p: argparse.ArgumentParser, required: bool = True) -> None:
+def harmonic(text: str):
+    """'axis:A:omega[:phase]' -> (axis, A rad, omega rad/s, phase rad)."""
+    parts = text.split(":")
+    try:
+        if len(parts) not in (3, 4) or parts[0] not in ("roll", "pitch", "yaw"):
+            raise ValueError
+        values = [float(v) for v in parts[1:]] + [0.0] * (4 - len(parts))
+        return (parts[0], *values)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"'{text}' is not a harmonic: use axis:A:omega[:phase], e.g. pitch:0.3:24.5"
+        ) from None
+
+
+def _motion(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--motion",
-        choices=("none", "roll", "pitch", "yaw"),
-        default=None if required else "none",
-        required=required,
-        help="base motion about X (roll), Z (pitch) or Y (yaw)",
+        choices=("none", "roll", "pitch", "yaw", "combined"),
+        default=None,
+        help="base motion about X (roll), Z (pitch) or Y (yaw), or combined harmonics (default: the config's)",
+    )
+    p.add_argument(
+        "--harmonic",
+        type=harmonic,
+        action="append",
+        default=[],
+        metavar="AXIS:A:OMEGA[:PHASE]",
+        help="with --motion combined: one harmonic beta = A sin(omega t + phase) (repeatable)",
     )
     p.add_argument("--amplitude", type=float, default=0.0, help="A (rad) in beta = A sin(omega t)")
     p.add_argument("--frequency", type=float, default=0.0, help="omega (rad/s)")
@@ -70,6 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--controller", choices=("continuous", "sampled"), default="continuous")
     p.add_argument("--snap", action="store_true", help="sampled: set Ts = T/round(T/Ts) if T/Ts is not rational")
     p.add_argument("--top", type=int, default=12, help="multipliers to print (largest first)")
+    p.add_argument("--horizon", type=float, default=20.0, help="aperiodic motion: Lyapunov horizon (s)")
     p = sub.add_parser("chart", help="stability chart of max|mu| over (omega, A)")
     _common(p)
     p.add_argument("--motion", choices=("roll", "pitch", "yaw"), required=True)

@@ -141,6 +141,8 @@ class StreamingEstimator:
         self._hist: deque = deque(maxlen=5)
         self._d4 = np.zeros((NOISE_BUFFER, self.channels))
         self._n_d4 = 0
+        self._d2_sq = np.zeros(self.channels)
+        self._n_d2 = 0
         self.latest: Estimate | None = None
 
     # ---- sampling ---------------------------------------------------------------------------------------
@@ -180,6 +182,9 @@ class StreamingEstimator:
 
     def _noise_sample(self, t: float, s: np.ndarray) -> None:
         h = self._hist
+        if not self._integer and len(h) >= 2:  # second differences: size of the interpolation error
+            self._d2_sq += np.square(s - 2.0 * h[-1][1] + h[-2][1])
+            self._n_d2 += 1
         if self._noise is not None or len(h) < 4:
             return
         t4, t3, t2, t1 = h[-4][0], h[-3][0], h[-2][0], h[-1][0]
@@ -190,13 +195,17 @@ class StreamingEstimator:
         self._n_d4 += 1
 
     def noise_estimate(self) -> np.ndarray | None:
-        """Measurement-noise std per channel: configured, or from the fourth differences (None if too few)."""
-        if self._noise is not None:
-            return self._noise
-        k = min(self._n_d4, NOISE_BUFFER)
-        if k < 16:
-            return None
-        return MAD_TO_STD * np.median(np.abs(self._d4[:k]), axis=0) / np.sqrt(D4_VARIANCE)
+        """Noise std per channel in the snapshots: measurement noise (configured, or from the fourth
+        differences; None if too few) plus, between samples, the linear-interpolation error |s''| Ts^2 / 8."""
+        noise = self._noise
+        if noise is None:
+            k = min(self._n_d4, NOISE_BUFFER)
+            if k < 16:
+                return None
+            noise = MAD_TO_STD * np.median(np.abs(self._d4[:k]), axis=0) / np.sqrt(D4_VARIANCE)
+        if not self._integer and self._n_d2:
+            noise = np.sqrt(np.square(noise) + self._d2_sq / self._n_d2 / 64.0)
+        return noise
 
     # ---- fitting -----------------------------------------------------------------------------------------
     def window_matrix(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -225,7 +234,7 @@ class StreamingEstimator:
         noise = self.noise_estimate()
         row_noise = None if noise is None else np.tile(noise / scale, self.cfg.phases)
         if noise is not None and not noise.any():
-            row_noise = None  # declared noise-free: round-off floor only
+            row_noise = None  # noise-free whole-sample snapshots: round-off floor only
         fit = fit_period_map(Z, self.cfg.forcing, row_noise, self.cfg.method, self.cfg.max_rank)
         verdict = self.flag.update(fit)
         est = Estimate(t, Z.shape[1] - 1, fit, verdict, self.flag.unstable, self.flag.confidence(fit))

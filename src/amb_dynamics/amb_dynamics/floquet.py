@@ -233,3 +233,37 @@ def sampled_lyapunov(loop: SampledLoop, motion: BaseMotion, periods: int, period
     t = np.arange(steps) * loop.Ts
     Om, dOm = motion.angular_velocity(t)
     return lyapunov_exponent(lambda j: loop.step_map(Om[:, j], dOm[:, j]), steps, loop.Ts, burn_in=steps // 2)
+
+
+def aperiodic_exponents(ps: PeriodicSystem, duration: float, h: float, chunk: int = 128) -> dict:
+    """No period (incommensurate or recorded motion, PHYSICS.md 5): growth measures of Phi(t, 0) over ``duration``.
+
+    Returns the finite-time Lyapunov exponent (1/t) ln ||Phi(t,0)||_2, the largest Lyapunov exponent from
+    QR-orthonormalised products (second half of the run), and max_t ||Phi(t,0)||_2 (sampled every ``chunk`` steps).
+    """
+    steps = max(1, int(np.ceil(duration / h)))
+    d = balancing_scale(ps.A0)
+    P = np.eye(ps.loop.N)
+    Q = np.eye(ps.loop.N)
+    log_scale, lyap, max_norm, done = 0.0, 0.0, 1.0, 0
+    while done < steps:
+        n = min(chunk, steps - done)
+        for E in magnus_step_matrices(ps, n * h, n, t0=done * h, scale=d):
+            P = E @ P
+            Q, R = np.linalg.qr(E @ Q)
+            if done >= steps // 2:
+                lyap += np.log(max(abs(R[0, 0]), 1e-300))
+            done += 1
+        s = np.linalg.norm(P, 2)
+        P /= s
+        log_scale += np.log(s)
+        phys = np.linalg.norm(P * d[:, None] / d[None, :], 2) * np.exp(log_scale)  # back to physical coordinates
+        max_norm = max(max_norm, float(phys))
+    t = steps * h
+    return {
+        "duration_s": t,
+        "steps": steps,
+        "ftle_1_s": float(np.log(phys) / t),
+        "lyapunov_exponent_1_s": float(lyap / ((steps - steps // 2) * h)),
+        "max_transition_norm": max_norm,
+    }
