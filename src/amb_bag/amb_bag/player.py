@@ -44,7 +44,7 @@ def play(opts: PlayOptions) -> int:
     if opts.clock_hz is not None and not opts.clock_hz > 0:
         raise BagError(f"--clock must be positive, got {opts.clock_hz}")
     bag = Bag(opts.bag)
-    topics = bag.select(opts.topics)
+    topics = [t for t in bag.select(opts.topics) if bag.topics[t].message_count]  # nothing to publish otherwise
     if opts.clock_hz is not None:
         topics = [t for t in topics if t != CLOCK_TOPIC]
     for t in topics:

@@ -11,8 +11,10 @@
   with ``take_message`` (about 7x faster than executor callbacks, measured); messages go straight into the
   chunked MCAP writer, with log_time = DDS reception time and publish_time = DDS source time (as rosbag2);
 - reads /diagnostics ``published <topic>`` counts for the loss table (:mod:`amb_bag.loss`);
-- every ``--flush-interval`` seconds finishes the open chunk and writes a progress file, so that a
-  ``kill -9`` loses at most that interval (``amb-bag check`` recovers the rest);
+- every ``--flush-interval`` seconds finishes the open chunk, so that a ``kill -9`` loses at most that
+  interval or one chunk (``amb-bag check`` recovers the rest), and every ``--progress-interval`` seconds
+  writes a small progress file (counts received, on disk, published), from which ``amb-bag check`` tells how
+  many received messages a crash lost;
 - on SIGINT/SIGTERM (or after ``--duration``) drains what is pending, writes the last chunk, the summary and
   metadata.yaml, prints the loss table, and exits 0.
 
@@ -54,6 +56,7 @@ class RecordOptions:
     split_duration_s: float | None = None
     discovery_interval_s: float = 0.1
     flush_interval_s: float = 1.0
+    progress_interval_s: float = 0.25
     qos_depth: int | None = None
     duration_s: float | None = None
     debug_delay_s: float = 0.0  # test-only: sleep per message, to show that loss is reported
@@ -191,23 +194,27 @@ class Recorder:
     def received(self) -> dict[str, int]:
         return {t.name: t.message_count for t in self.writer.topics}
 
-    def checkpoint(self) -> None:
-        self.writer.checkpoint({"received": self.received(), "published": self.loss.published(),
-                                "time_ns": time.time_ns()})  # fmt: skip
+    def write_progress(self) -> None:
+        self.writer.write_progress({"received": self.received(), "published": self.loss.published(),
+                                    "time_ns": time.time_ns()})  # fmt: skip
 
     def spin(self) -> None:
         """Record until :attr:`stop_requested` (set by a signal) or the duration elapses."""
         now = time.monotonic()
         end = now + self.opts.duration_s if self.opts.duration_s else float("inf")
-        next_scan = next_flush = now
+        next_scan = next_flush = next_progress = now
         while not self.stop_requested and now < end:
             if now >= next_scan:
                 self.discover()
                 next_scan = now + self.opts.discovery_interval_s
             if now >= next_flush:
-                self.checkpoint()
+                self.writer.flush()
                 next_flush = now + self.opts.flush_interval_s
-            self._wait_and_drain(max(0.0, min(WAIT_MAX_S, next_scan - now, next_flush - now, end - now)))
+            if now >= next_progress:
+                self.write_progress()
+                next_progress = now + self.opts.progress_interval_s
+            timeout = min(WAIT_MAX_S, next_scan - now, next_flush - now, next_progress - now, end - now)
+            self._wait_and_drain(max(0.0, timeout))
             now = time.monotonic()
         # Take what is already delivered, then a last short wait for messages still in flight.
         while self._wait_and_drain(0.02):
@@ -254,7 +261,9 @@ def add_record_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--split-size", type=float, metavar="MB", help="start a new file after this many MB")
     parser.add_argument("--split-duration", type=float, metavar="S", help="start a new file every S seconds")
     parser.add_argument("--flush-interval", type=float, default=1.0, metavar="S",
-                        help="write the open chunk and a progress file every S seconds (default 1)")  # fmt: skip
+                        help="finish the open chunk every S s (default 1): a crash loses at most that")  # fmt: skip
+    parser.add_argument("--progress-interval", type=float, default=0.25, metavar="S",
+                        help="write the progress file (counts for crash reports) every S s (default 0.25)")  # fmt: skip
     parser.add_argument("--discovery-interval", type=float, default=0.1, metavar="S",
                         help="graph scan period for new publishers (default 0.1 s)")  # fmt: skip
     parser.add_argument("--qos-depth", type=int, metavar="N",
@@ -264,8 +273,8 @@ def add_record_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def options_from_args(args: argparse.Namespace) -> RecordOptions:
-    for name in ("chunk_size", "split_size", "split_duration", "flush_interval", "discovery_interval",
-                 "qos_depth", "duration"):  # fmt: skip
+    for name in ("chunk_size", "split_size", "split_duration", "flush_interval", "progress_interval",
+                 "discovery_interval", "qos_depth", "duration"):  # fmt: skip
         value = getattr(args, name)
         if value is not None and not value > 0:
             raise BagError(f"--{name.replace('_', '-')} must be positive, got {value}")
@@ -273,6 +282,7 @@ def options_from_args(args: argparse.Namespace) -> RecordOptions:
         output=args.output, topics=args.topics, include_hidden=args.include_hidden, compression=args.compression,
         chunk_size=args.chunk_size, split_size_mb=args.split_size, split_duration_s=args.split_duration,
         discovery_interval_s=args.discovery_interval, flush_interval_s=args.flush_interval,
+        progress_interval_s=args.progress_interval,
         qos_depth=args.qos_depth, duration_s=args.duration, debug_delay_s=args.debug_delay_per_message,
         exclude=args.exclude,
     )  # fmt: skip

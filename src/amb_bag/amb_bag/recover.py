@@ -11,11 +11,11 @@ metadata.yaml.
 What can be measured about the loss, honestly:
 
 - ``recovered``: messages per topic in the complete chunks (exact);
-- the recorder's last progress file (written every ``--flush-interval``): messages it had received by then,
-  and the publishers' ``published`` counts from /diagnostics by then; the recovered /diagnostics messages give
-  the same counts independently;
-- ``lost_at_least = max(received, published) - recovered`` per topic (a lower bound: messages after the last
-  checkpoint or report are unknown).
+- the recorder's last progress file (written every ``--progress-interval``, 0.25 s by default): messages it
+  had received by then (on disk or still in the open chunk), and the publishers' ``published`` counts from
+  /diagnostics by then; the recovered /diagnostics messages give published counts independently;
+- ``lost_at_least = max(received, published) - recovered`` per topic: a lower bound, since messages after the
+  last progress file or report are unknown.
 """
 
 from __future__ import annotations

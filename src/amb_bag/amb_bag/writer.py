@@ -3,9 +3,11 @@
 ``<bag>/<name>_<i>.mcap`` (profile ``ros2``; schemas ``ros2msg`` with rosbag2's concatenated definitions;
 channels ``cdr`` with ``offered_qos_profiles`` and ``topic_type_hash`` metadata; a ``rosbag2`` metadata record at
 the end of each file) plus ``metadata.yaml`` v9 on close.  Crash safety: the file is unbuffered, so each chunk
-reaches the operating system when it is finished; :meth:`BagWriter.checkpoint` also finishes the open chunk and
-writes ``.amb_bag_progress.json`` (counts known to be on disk, plus what the caller adds), which
-``amb-bag check`` uses after a ``kill -9``.  Only the chunk being filled is lost in a crash.
+reaches the operating system when it is finished (the writer notices and notes the per-topic counts then on disk);
+:meth:`BagWriter.flush` finishes the open chunk early; :meth:`BagWriter.write_progress` writes
+``.amb_bag_progress.json`` (messages received so far, messages on disk, plus what the caller adds), which
+``amb-bag check`` uses after a ``kill -9`` to say how many received messages were lost.  Only the chunk being
+filled is lost in a crash.
 """
 
 from __future__ import annotations
@@ -91,6 +93,7 @@ class BagWriter:
         self._split_bytes = int(split_size) if split_size else NEVER
         self._split_ns = int(split_duration_ns) if split_duration_ns else NEVER
         self.topics: list[TopicRecord] = []
+        self._on_disk: list[int] = []
         self.files: list[FileRecord] = []
         self._schemas: dict[str, int] = {}
         self._open_file()
@@ -149,8 +152,11 @@ class BagWriter:
         """Append one serialized message; ``log_time`` / ``publish_time`` in ns since the epoch."""
         if log_time - self._file_min >= self._split_ns or self._sink.pos >= self._split_bytes:
             self._split()
+        pos = self._sink.pos
         self._add(topic_id + 1, log_time, data, publish_time, sequence)
         self.topics[topic_id].message_count += 1
+        if self._sink.pos != pos:  # a chunk (holding this message) was just written
+            self._on_disk = [t.message_count for t in self.topics]
         self._file_count += 1
         if log_time < self._file_min:
             self._file_min = log_time
@@ -162,11 +168,17 @@ class BagWriter:
         return sum(t.message_count for t in self.topics)
 
     # -- crash safety, metadata, close ----------------------------------------------------------------------
-    def checkpoint(self, extra: dict | None = None) -> None:
-        """Finish the open chunk (so it is on disk) and write the progress file for ``amb-bag check``."""
+    def flush(self) -> None:
+        """Finish the open chunk now, so that everything written so far is on disk."""
         self._mcap.flush()
+        self._on_disk = [t.message_count for t in self.topics]
+
+    def write_progress(self, extra: dict | None = None) -> None:
+        """Write the progress file: per topic, messages written so far and messages already on disk."""
+        on_disk = self._on_disk + [0] * (len(self.topics) - len(self._on_disk))
         progress = {
-            "on_disk": {t.name: t.message_count for t in self.topics},
+            "written": {t.name: t.message_count for t in self.topics},
+            "on_disk": {t.name: n for t, n in zip(self.topics, on_disk, strict=True)},
             "files": [f.path for f in self.files],
             **(extra or {}),
         }
