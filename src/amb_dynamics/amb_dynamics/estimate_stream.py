@@ -56,7 +56,7 @@ class EstimatorConfig:
     forcing: str | int = "constant"
     phases: int = 32
     window: int = 16
-    updates_per_period: int = 4
+    updates_per_period: int = 8
     method: str = "ls"
     max_rank: int = 12
     noise_std: float | tuple[float, ...] | None = None

@@ -1,0 +1,174 @@
+"""Offline re-analysis of a recorded run: the live monitor's pipeline over a bag, and the model's value.
+
+The bag's /base/imu and /amb_plant/state (or /amb/displacement) are decoded with the node's decoders and fed
+to :class:`~stability_monitor.pipeline.MonitorPipeline` in log-time order, so the estimates are those the node
+computes live.  The model value is the sampled-data Floquet multiplier (``floquet.sampled_floquet``) of the
+rotor config (``--config`` / ``--set``, as given to ``amb-rig``) under the base motion read back from the
+recorded angular velocity (single-axis motions: axis, amplitude, frequency and phase fitted).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import amb_ros.messages as m
+from amb_dynamics.errors import InputError
+from amb_dynamics.estimate_stream import Estimate
+from amb_dynamics.motion import AXES, BaseMotion, Harmonic
+
+from .bagread import BagReadError, bag_files, bag_topics, read_messages
+from .messages import JointStateInput
+from .pipeline import MonitorPipeline, MonitorSettings
+
+AXIS_OF_COMPONENT = {0: "roll", 1: "yaw", 2: "pitch"}  # Omega components x, y, z
+SINGLE_AXIS_TOL = 1e-9
+
+
+@dataclass
+class Analysis:
+    """Everything ``amb-monitor analyze`` reports."""
+
+    bag: str
+    topic: str
+    pipeline: MonitorPipeline
+    estimates: list[Estimate]
+    imu_t: np.ndarray
+    imu_w: np.ndarray
+    sample_spacing: float | None
+    rejected: dict[str, int] = field(default_factory=dict)
+    model: dict | None = None
+
+    def to_dict(self, top: int = 6) -> dict:
+        pl, last = self.pipeline, (self.estimates[-1] if self.estimates else None)
+        pe = pl.period_estimate
+        return {
+            "bag": self.bag,
+            "input_topic": self.topic,
+            "samples": pl.samples,
+            "rejected": self.rejected,
+            "period_s": pe.period if pe else None,
+            "base_period_s": pe.base_period if pe else None,
+            "forcing": pl.forcing or None,
+            "refits": len(self.estimates),
+            "estimates": [e.to_dict(top) for e in self.estimates],
+            "verdict": last.verdict if last else pl.state,
+            "unstable": bool(last.unstable) if last else False,
+            "flag_time_s": pl.flag_time,
+            "final": last.to_dict(top) if last else None,
+            "model": self.model,
+        }
+
+
+def analyze_bag(path: Path, settings: MonitorSettings) -> Analysis:
+    """Run the monitor's pipeline over the bag at ``path``."""
+    files = bag_files(path)
+    topics = bag_topics(files)
+    topic = m.DISPLACEMENT if settings.sensor_only else m.STATE
+    if topic not in topics:
+        hint = "" if settings.sensor_only else " (use --sensor-only for a bag with /amb/displacement only)"
+        raise BagReadError(f"{path} has no {topic} topic{hint}")
+    wanted = [topic]
+    if settings.period == 0:
+        if m.IMU not in topics:
+            raise BagReadError(f"{path} has no {m.IMU} topic to find the base period: give --period")
+        wanted.append(m.IMU)
+    data_in = JointStateInput(("position",) if settings.sensor_only else ("position", "velocity"))
+    imu_decoder = m.imu_decoder()
+    pipeline = MonitorPipeline(settings)
+    estimates: list[Estimate] = []
+    rejected = {t: 0 for t in wanted}
+    imu_t, imu_w, spacing, last_t = [], [], [], None
+    for name, _log_ns, raw in read_messages(files, wanted):
+        try:
+            if name == m.IMU:
+                t_ns, v = imu_decoder(raw)
+                imu_t.append(t_ns * 1e-9)
+                imu_w.append(v[4:7].copy())
+                estimates.extend(pipeline.on_imu(t_ns * 1e-9, v[4:7]))
+                continue
+            t_ns, v = data_in(raw)
+        except m.Rejected:
+            rejected[name] += 1
+            continue
+        if pipeline.scale_groups is None:
+            pipeline.scale_groups = data_in.scale_groups()
+        t = t_ns * 1e-9
+        if last_t is not None and t > last_t and len(spacing) < 64:
+            spacing.append(t - last_t)
+        try:
+            estimates.extend(pipeline.on_sample(t, v))
+        except InputError as exc:
+            raise BagReadError(f"{path}: {topic}: {exc}") from None
+        last_t = t
+    if pipeline.samples == 0:
+        raise BagReadError(f"{path} holds no usable {topic} message")
+    return Analysis(
+        str(path),
+        topic,
+        pipeline,
+        estimates,
+        np.asarray(imu_t),
+        np.asarray(imu_w).reshape(-1, 3),
+        float(np.median(spacing)) if spacing else None,
+        rejected,
+    )
+
+
+def recorded_motion(t: np.ndarray, W: np.ndarray, base_period: float) -> BaseMotion:
+    """Single-axis harmonic base motion that reproduces the recorded angular velocity (rad/s)."""
+    peak = np.abs(W).max(axis=0)
+    axis = int(np.argmax(peak))
+    if any(peak[j] > SINGLE_AXIS_TOL * peak[axis] for j in range(3) if j != axis):
+        raise InputError("the recorded base motion turns about more than one axis: no model value")
+    w = 2.0 * np.pi / base_period
+    # Omega = A w cos(w t + phase): least squares for (a, b) in a cos(w t) + b sin(w t)
+    basis = np.column_stack([np.cos(w * t), np.sin(w * t)])
+    (a, b), *_ = np.linalg.lstsq(basis, W[:, axis], rcond=None)
+    amp_w = float(np.hypot(a, b))
+    fit = basis @ [a, b]
+    if np.sqrt(np.mean((fit - W[:, axis]) ** 2)) > 1e-6 * amp_w:
+        raise InputError("the recorded base motion is not a single harmonic: no model value")
+    kind = AXIS_OF_COMPONENT[axis]
+    assert kind in AXES
+    return BaseMotion((Harmonic(kind, amp_w / w, w, float(np.arctan2(-b, a))),), kind)
+
+
+def model_value(analysis: Analysis, config_path: str | None, overrides: list[str]) -> dict:
+    """Sampled-data model multipliers for the recorded base motion and the given rotor config."""
+    from amb_dynamics.config import load_config
+    from amb_dynamics.floquet import sampled_floquet
+    from amb_dynamics.sampled import SampledLoop
+    from amb_dynamics.structure import build_structure
+
+    pe = analysis.pipeline.period_estimate
+    if pe is None or analysis.imu_t.size < 16:
+        raise InputError("no base period or base rates in the analysis: no model value")
+    motion = recorded_motion(analysis.imu_t, analysis.imu_w, pe.base_period)
+    cfg = load_config(config_path, overrides)
+    Ts = max(1, round(1e9 / cfg.controller.rate_hz)) / 1e9  # the nodes' whole-ns sample period
+    notes = []
+    if analysis.sample_spacing is not None:
+        ratio = analysis.sample_spacing / Ts
+        if abs(ratio - round(ratio)) > 1e-6:
+            notes.append(f"recorded sample spacing {analysis.sample_spacing:.9g} s is not a multiple of Ts = {Ts:g} s")
+    h = motion.harmonics[0]
+    loop = SampledLoop(build_structure(cfg), cfg, Ts=Ts)
+    res = sampled_floquet(loop, motion, pe.period, snap=True)
+    return {
+        "rho": res.max_abs,
+        "multipliers": [[float(z.real), float(z.imag)] for z in res.multipliers[:6]],
+        "motion": {"kind": h.axis, "amplitude_rad": h.amplitude, "frequency_rad_s": h.frequency, "phase_rad": h.phase},
+        "method": res.method,
+        "notes": notes + list(res.notes),
+    }
+
+
+def try_model_value(analysis: Analysis, config_path: str | None, overrides: list[str]) -> dict:
+    """``model_value`` or {'error': reason} when the recorded motion has no model value (not a failure)."""
+    try:
+        return model_value(analysis, config_path, overrides)
+    except InputError as exc:
+        return {"error": str(exc)}

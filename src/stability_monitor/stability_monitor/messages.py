@@ -1,0 +1,71 @@
+"""Message glue of the monitor: the JointState input whose channel names are learnt, and the multiplier array.
+
+The monitor does not assume the plant's configuration: the first JointState fixes the channel names (and so the
+layout); later messages are decoded with ``amb_ros``'s fast fixed-layout codec, reordered by name if needed, and
+rejected (never used) if they are not finite or have other names or sizes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+import amb_ros.messages as m
+
+
+class JointStateInput:
+    """Decoder of JointState samples with the float arrays ``fields`` (position, or position and velocity)."""
+
+    def __init__(self, fields: tuple[str, ...]):
+        self.fields = fields
+        self.names: tuple[str, ...] | None = None
+        self._decoder: m.Decoder | None = None
+
+    def __call__(self, raw: bytes) -> tuple[int, np.ndarray]:
+        """(stamp ns, concatenated fields) or :class:`amb_ros.messages.Rejected`."""
+        if self._decoder is None:
+            try:
+                msg = deserialize_message(raw, JointState)
+            except Exception as exc:  # an unparsable buffer is a rejected message
+                raise m.Rejected(f"undecodable JointState ({exc})") from None
+            names = tuple(msg.name)
+            if not names:
+                raise m.Rejected("JointState without channel names")
+            for f in self.fields:
+                if len(getattr(msg, f)) != len(names):
+                    raise m.Rejected(f"{f} has {len(getattr(msg, f))} values for {len(names)} names")
+            self.names = names
+            self._decoder = m.joint_state_decoder(names, self.fields)
+        return self._decoder(raw)
+
+    def scale_groups(self) -> tuple[int, ...] | None:
+        """Row-scale groups for the estimator: positions as one group, velocities as another (None: 1 field)."""
+        if self.names is None or len(self.fields) == 1:
+            return None
+        n = len(self.names)
+        return tuple(g for g in range(len(self.fields)) for _ in range(n))
+
+
+def multipliers_message(mu, count: int) -> Float64MultiArray:
+    """Float64MultiArray with layout dims [k, 2] (re, im) of the ``count`` largest multipliers (sorted)."""
+    mu = np.asarray(mu, dtype=complex)[:count]
+    k = int(mu.size)
+    msg = Float64MultiArray()
+    msg.layout.dim = [
+        MultiArrayDimension(label="multiplier", size=k, stride=2 * k),
+        MultiArrayDimension(label="re_im", size=2, stride=2),
+    ]
+    msg.layout.data_offset = 0
+    msg.data = np.column_stack([mu.real, mu.imag]).ravel().tolist()
+    return msg
+
+
+def multipliers_from_message(msg) -> np.ndarray:
+    """Complex multipliers of a /stability/multipliers message (checks the [k, 2] layout)."""
+    dims = list(msg.layout.dim)
+    if len(dims) != 2 or dims[1].size != 2 or len(msg.data) != 2 * dims[0].size:
+        raise ValueError("not a [k, 2] multiplier array")
+    d = np.asarray(msg.data, dtype=float).reshape(-1, 2)
+    return d[:, 0] + 1j * d[:, 1]

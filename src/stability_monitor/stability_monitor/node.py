@@ -1,0 +1,251 @@
+"""stability_monitor node: online Floquet multipliers of the running rig and a latched instability flag.
+
+Topics (layouts in docs/monitor.md)
+-----------------------------------
+subscribes /amb_plant/state        sensor_msgs/JointState: name = generalised coordinates, position = q,
+                                   velocity = dq/dt (input:=state, the default)
+subscribes /amb/displacement       sensor_msgs/JointState: name = AMB channels, position = y (m)
+                                   (input:=displacement, sensor-only: what a real rig measures)
+subscribes /base/imu               sensor_msgs/Imu: angular_velocity = Omega (rad/s); only to find the base
+                                   period (period_s:=0, the default)
+publishes  /stability/multipliers  std_msgs/Float64MultiArray, layout dims [k, 2] ("multiplier", "re_im"):
+                                   data = [re_0, im_0, re_1, im_1, ...], largest |mu| first, k <= publish_count;
+                                   k = 0 when the data do not identify the map.  One message per refit.
+publishes  /stability/unstable     std_msgs/Bool, RELIABLE + TRANSIENT_LOCAL depth 1 (latched): the verdict
+                                   flag; False at start, republished on every change
+publishes  /diagnostics            rho, its standard error and confidence, periods used, verdict, rank, period;
+                                   level OK (stable), WARN (marginal, collecting, insufficient excitation,
+                                   waiting for the period), ERROR (unstable)
+
+Time is the stamp of the samples (t_k of the lockstep /clock, or of the replayed bag): the estimates depend on
+the data only, never on wall time, so a replay gives the live run's output.  The monitor only reads the lockstep
+topics (reliable, deep history), so it never holds up the loop; its cost per sample is in the diagnostics.
+The numbers come from ``amb_dynamics.estimate*`` through :mod:`stability_monitor.pipeline`.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Bool, Float64MultiArray
+
+import amb_ros.messages as m
+from amb_dynamics.errors import InputError
+from amb_ros.diagnostics import ERROR, OK, WARN, Timings
+from amb_ros.loop import Waiter
+from amb_ros.node_base import RigNode
+from amb_ros.params import ParamSpec
+from amb_ros.qos import data_qos
+from amb_ros.runtime import run_node
+
+from .messages import JointStateInput, multipliers_message
+from .pipeline import FORCING_CHOICES, MonitorPipeline, MonitorSettings
+
+MULTIPLIERS = "/stability/multipliers"
+UNSTABLE = "/stability/unstable"
+INPUTS = ("state", "displacement")
+
+
+def latched_qos() -> QoSProfile:
+    # a late subscriber (the controller's safe-gain switch, a recorder) must still get the current verdict
+    return QoSProfile(
+        depth=1,
+        history=HistoryPolicy.KEEP_LAST,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+
+
+def multipliers_qos() -> QoSProfile:
+    # every refit is a result: reliable, deep enough for a recorder, no history for late joiners
+    return QoSProfile(
+        depth=100,
+        history=HistoryPolicy.KEEP_LAST,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.VOLATILE,
+    )
+
+
+def specs() -> list[ParamSpec]:
+    return [
+        ParamSpec("input", "state", "snapshots: full plant state, or the AMB displacements only", choices=INPUTS),
+        ParamSpec("period_s", 0.0, "period of A(t); 0 = estimate the base period from /base/imu", "s", 0.0, 1e4),
+        ParamSpec("forcing", "auto", "forcing model over periods", choices=FORCING_CHOICES),
+        ParamSpec("phases", 32, "phases sampled per period", "", 1, 4096),
+        ParamSpec("window_periods", 16, "periods in the moving window", "", 3, 10000),
+        ParamSpec("updates_per_period", 8, "refits per period", "", 1, 4096),
+        ParamSpec("method", "ls", "identification: least squares or total least squares", choices=("ls", "tls")),
+        ParamSpec("max_rank", 12, "largest number of modes identified", "", 1, 1000),
+        ParamSpec("noise_std", -1.0, "measurement noise std of every channel; negative = estimate from the data",
+                  "signal units", -1.0, 1e9),
+        ParamSpec("margin", 0.02, "flag when rho >= 1 + margin (and rho - z std > 1)", "", 0.0, 10.0),
+        ParamSpec("hysteresis", 0.02, "clear when rho + z std < 1 + margin - hysteresis", "", 0.0, 10.0),
+        ParamSpec("confidence_z", 3.0, "standard errors required on the right side of 1", "", 0.0, 100.0),
+        ParamSpec("confirm", 2, "consecutive refits needed to raise or clear the flag", "", 1, 1000),
+        ParamSpec("publish_count", 8, "multipliers published per refit (largest first)", "", 0, 10000),
+        ParamSpec("static_wait_s", 1.0, "no base rotation for this long: static base", "s", 0.0, 1e6),
+        ParamSpec("static_period_s", 0.1, "period used for a static base", "s", 1e-6, 1e6),
+    ]  # fmt: skip
+
+
+class MonitorNode(RigNode):
+    def __init__(self, stop):
+        super().__init__("stability_monitor", stop, specs())
+        p = self.p
+        self.input = p["input"]
+        self.settings = MonitorSettings(
+            sensor_only=self.input == "displacement",
+            period=p["period_s"],
+            forcing=p["forcing"],
+            phases=p["phases"],
+            window=p["window_periods"],
+            updates_per_period=p["updates_per_period"],
+            method=p["method"],
+            max_rank=p["max_rank"],
+            noise_std=p["noise_std"],
+            margin=p["margin"],
+            hysteresis=p["hysteresis"],
+            z=p["confidence_z"],
+            confirm=p["confirm"],
+            static_wait=p["static_wait_s"],
+            static_period=p["static_period_s"],
+        )
+        self.pipeline = MonitorPipeline(self.settings)  # scale groups set once the first sample names the channels
+        self.topic = m.DISPLACEMENT if self.input == "displacement" else m.STATE
+        fields = ("position",) if self.input == "displacement" else ("position", "velocity")
+        self.data_in = JointStateInput(fields)
+        qos = data_qos(self.mode, p["qos_depth"])
+        self.data_sub = self.create_subscription(JointState, self.topic, self.on_data, qos, raw=True)
+        subs = [self.data_sub]
+        self.imu_sub = None
+        if self.settings.period == 0:
+            self.imu_decoder = m.imu_decoder()
+            self.imu_sub = self.create_subscription(Imu, m.IMU, self.on_imu, qos, raw=True)
+            subs.append(self.imu_sub)
+        self.mult_pub = self.create_publisher(Float64MultiArray, MULTIPLIERS, multipliers_qos())
+        self.flag_pub = self.create_publisher(Bool, UNSTABLE, latched_qos())
+        self.waiter = Waiter(self, subs)
+        self.flag = False
+        self.flag_pub.publish(Bool(data=False))
+        self.counters.published[UNSTABLE] = 1
+        self.cost = Timings()
+        self.lost = 0
+        self.last_t_ns: int | None = None
+        self.error = ""
+
+    # -- receive ------------------------------------------------------------------------------------
+    def on_imu(self, raw: bytes) -> None:
+        self.counters.received[m.IMU] += 1
+        try:
+            t_ns, values = self.imu_decoder(raw)
+        except m.Rejected as exc:
+            self.counters.reject(m.IMU, str(exc))
+            return
+        self.publish(self.pipeline.on_imu(t_ns * 1e-9, values[4:7]))
+
+    def on_data(self, raw: bytes) -> None:
+        self.counters.received[self.topic] += 1
+        try:
+            t_ns, values = self.data_in(raw)
+        except m.Rejected as exc:
+            self.counters.reject(self.topic, str(exc))
+            return
+        if self.pipeline.scale_groups is None:
+            self.pipeline.scale_groups = self.data_in.scale_groups()
+        t0 = time.perf_counter()
+        Ts = self.pipeline.sample_time
+        if Ts is not None and self.last_t_ns is not None and t_ns > self.last_t_ns:
+            self.lost += max(0, round((t_ns - self.last_t_ns) * 1e-9 / Ts) - 1)
+        try:
+            estimates = self.pipeline.on_sample(t_ns * 1e-9, values)
+        except InputError as exc:
+            self.counters.reject(self.topic, str(exc))
+            self.error = str(exc)
+            return
+        self.last_t_ns = t_ns
+        self.publish(estimates)
+        self.cost.add(time.perf_counter() - t0)
+
+    def publish(self, estimates) -> None:
+        for est in estimates:
+            self.mult_pub.publish(multipliers_message(est.fit.multipliers if est.fit.excited else [],
+                                                      self.p["publish_count"]))  # fmt: skip
+            self.counters.published[MULTIPLIERS] += 1
+        unstable = bool(self.pipeline.latest.unstable) if self.pipeline.latest else False
+        if unstable != self.flag:
+            self.flag = unstable
+            self.flag_pub.publish(Bool(data=unstable))
+            self.counters.published[UNSTABLE] += 1
+
+    def drain(self) -> None:
+        for sub, handler in ((self.imu_sub, self.on_imu), (self.data_sub, self.on_data)):
+            if sub is None:
+                continue
+            while (raw := Waiter.take(sub)) is not None:
+                handler(raw)
+
+    # -- loop -----------------------------------------------------------------------------------------
+    def run(self) -> int:
+        while not self.stop.is_set:
+            self.waiter.wait(1.0)
+            self.drain()
+            self.waiter.serve()
+            if self.diag.due():
+                self.diag.publish(*self.status(), self.values())
+        self.drain()
+        self.waiter.close()
+        self.diag.publish_final(*self.status(), self.values())
+        return 0
+
+    def status(self) -> tuple[bytes, str]:
+        pl = self.pipeline
+        if self.error:
+            return ERROR, f"input rejected: {self.error}"
+        if pl.samples == 0:
+            return WARN, f"waiting for {self.topic}"
+        est = pl.latest
+        if pl.estimator is None:
+            note = f" ({pl.note})" if pl.note else ""
+            return WARN, f"{pl.state}: {pl.imu_samples} base-rate and {pl.samples} data samples{note}"
+        if est is None:
+            return WARN, "collecting the first periods"
+        if est.unstable:
+            return (
+                ERROR,
+                f"UNSTABLE: rho = {est.rho:.4f} +- {est.fit.rho_std:.2g} (flag raised at t = {pl.flag_time:.4f} s)",
+            )
+        if not est.fit.excited:
+            return WARN, f"{est.verdict.replace('_', ' ')}: {est.fit.reason}"
+        level = OK if est.verdict == "stable" else WARN
+        return level, f"{est.verdict}: rho = {est.rho:.4f} +- {est.fit.rho_std:.2g} over {est.periods} periods"
+
+    def values(self) -> dict[str, str]:
+        out = self.common_values()
+        pl = self.pipeline
+        out.update({"input": self.input, "unstable": str(self.flag).lower(), "samples lost": str(self.lost)})
+        if pl.samples:
+            out.update({"samples": str(pl.samples), "refits": str(pl.refits), "restarts": str(pl.restarts),
+                        "state": pl.state, "forcing": pl.forcing})  # fmt: skip
+            if pl.period_estimate is not None:
+                out["period (s)"] = f"{pl.period_estimate.period:.9g}"
+                out["base period (s)"] = f"{pl.period_estimate.base_period:.9g}"
+            if pl.flag_time is not None:
+                out["flag raised at (s)"] = f"{pl.flag_time:.6g}"
+            est = pl.latest
+            if est is not None:
+                f = est.fit
+                out.update({"verdict": est.verdict, "periods used": str(est.periods), "rank": str(f.rank),
+                            "signal rank": str(f.signal_rank), "snr": f"{f.snr:.3g}",
+                            "confidence": f"{est.confidence:.4f}", "estimate time (s)": f"{est.time:.6g}"})  # fmt: skip
+                if f.excited:
+                    out["rho"] = f"{f.rho:.6f}"
+                    out["rho std"] = f"{f.rho_std:.3g}"
+        out.update(self.cost.summary("cost per sample"))
+        return out
+
+
+def main(args: list[str] | None = None) -> None:
+    sys.exit(run_node("stability_monitor", MonitorNode, args))

@@ -1,0 +1,181 @@
+"""ROS-free heart of the stability monitor: base period from the base rates, buffering, the estimator.
+
+The node (live topics) and ``amb-monitor analyze`` (a recorded bag) feed the same ``MonitorPipeline`` with the
+same samples in the same order, so they produce the same estimates.  Samples that arrive before the period is
+known are buffered and replayed into the estimator once it is: the start of a run, where the transient is
+largest, is the most informative part.  Everything decided here depends on the data only (sample counts and
+stamps), never on wall time, so a replay gives the same output as the live run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from amb_dynamics.errors import InputError
+from amb_dynamics.estimate import VerdictPolicy
+from amb_dynamics.estimate_period import PeriodEstimate, estimate_base_period
+from amb_dynamics.estimate_stream import Estimate, EstimatorConfig, StreamingEstimator
+
+FORCING_CHOICES = ("auto", "none", "constant", "alternating", "two_periods")
+IMU_TRY_EVERY = 256  # base-rate samples between attempts to find the period
+SAMPLE_TIME_FROM = 8  # sample spacings that fix the sample time (median)
+
+
+@dataclass(frozen=True)
+class MonitorSettings:
+    """Monitor options (the node's parameters and the CLI's flags map onto these one to one).
+
+    period : float
+        Period of A(t) (s); 0 = estimate it from the base rates (/base/imu).
+    forcing : str
+        'auto' (from the base rates; with a fixed period: 'two_periods', any forcing that repeats every two
+        periods, which covers constant and alternating), or 'none', 'constant', 'alternating'.
+    noise_std : float
+        Measurement-noise std of every channel (signal units); < 0 = estimate it from the data.
+    static_wait : float
+        Seconds of base rates without rotation after which the base is taken as static and ``static_period``
+        is used (the loop is then time-invariant and any period gives its multipliers).
+    """
+
+    sensor_only: bool = False
+    period: float = 0.0
+    forcing: str = "auto"
+    phases: int = 32
+    window: int = 16
+    updates_per_period: int = 8
+    method: str = "ls"
+    max_rank: int = 12
+    noise_std: float = -1.0
+    margin: float = 0.02
+    hysteresis: float = 0.02
+    z: float = 3.0
+    confirm: int = 2
+    static_wait: float = 1.0
+    static_period: float = 0.1
+    max_buffer: int = 400_000
+
+    def __post_init__(self):
+        if self.forcing not in FORCING_CHOICES:
+            raise InputError(f"forcing '{self.forcing}' is not one of {', '.join(FORCING_CHOICES)}")
+        if not (np.isfinite(self.period) and self.period >= 0):
+            raise InputError(f"period must be >= 0 s (0 = estimate from the base rates), got {self.period}")
+        VerdictPolicy(self.margin, self.hysteresis, self.z, self.confirm)  # validates
+
+
+class MonitorPipeline:
+    """Period detection + estimator over one run; ``on_sample`` returns the estimates it produced."""
+
+    def __init__(self, settings: MonitorSettings, scale_groups: tuple[int, ...] | None = None):
+        self.s = settings
+        self.scale_groups = scale_groups
+        self.restarts = 0
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the run (a plant restart: stamps start again at 0)."""
+        self.period_estimate: PeriodEstimate | None = None
+        self.estimator: StreamingEstimator | None = None
+        self.sample_time: float | None = None
+        self.state = "waiting for the base period" if self.s.period == 0 else "waiting for samples"
+        self.note = ""
+        self.samples = self.imu_samples = self.refits = 0
+        self.flag_time: float | None = None
+        self.latest: Estimate | None = None
+        self._buffer: list[tuple[float, np.ndarray]] = []
+        self._imu_t: list[float] = []
+        self._imu_w: list[np.ndarray] = []
+        self._last_t: float | None = None
+
+    # ---- inputs ------------------------------------------------------------------------------------------
+    def on_imu(self, t: float, omega: np.ndarray) -> list[Estimate]:
+        """One base angular-velocity sample (rad/s, base axes) at time t (s); returns the refits it caused
+        (when it completes the period, the buffered samples go through the estimator)."""
+        if self.period_estimate is not None or self.s.period > 0:
+            return []
+        if self._imu_t and t <= self._imu_t[-1]:
+            if t != 0.0:
+                return []
+            self._imu_t, self._imu_w = [], []  # base motion restarted with the run
+        self._imu_t.append(float(t))
+        self._imu_w.append(np.asarray(omega, dtype=float).copy())
+        self.imu_samples += 1
+        if len(self._imu_t) % IMU_TRY_EVERY == 0 and self.sample_time is not None:
+            return self._try_period()
+        return []
+
+    def on_sample(self, t: float, values: np.ndarray) -> list[Estimate]:
+        """One snapshot (state [q; q'] or AMB displacements) at time t (s); returns the refits it caused."""
+        if self._last_t is not None and t <= self._last_t:
+            if t != 0.0:
+                raise InputError(f"sample time {t:.9f} s is not after {self._last_t:.9f} s")
+            self.restarts += 1
+            self.reset()
+        self._last_t = float(t)
+        self.samples += 1
+        if self.estimator is not None:
+            return self._push(t, values)
+        if len(self._buffer) >= self.s.max_buffer:
+            raise InputError(f"no base period after {self.s.max_buffer} samples: set the period parameter")
+        self._buffer.append((float(t), np.asarray(values, dtype=float).copy()))
+        if self.sample_time is None and len(self._buffer) > SAMPLE_TIME_FROM:
+            dt = np.diff([b[0] for b in self._buffer])
+            self.sample_time = float(np.median(dt))
+            if self.s.period > 0:
+                return self._start(PeriodEstimate(self.s.period, self.s.period, "two_periods"))
+        return []
+
+    # ---- period and start ------------------------------------------------------------------------------
+    def _try_period(self) -> list[Estimate]:
+        t = np.asarray(self._imu_t)
+        try:
+            pe = estimate_base_period(t, np.asarray(self._imu_w), self.sample_time)
+        except InputError as exc:
+            self.note = str(exc)
+            if "does not rotate" in self.note and t[-1] - t[0] >= self.s.static_wait:
+                self.note = f"static base: multipliers per {self.s.static_period:g} s"
+                return self._start(PeriodEstimate(self.s.static_period, self.s.static_period, "constant"))
+            return []
+        self.note = ""
+        return self._start(pe)
+
+    def _start(self, pe: PeriodEstimate) -> list[Estimate]:
+        forcing = pe.forcing if self.s.forcing == "auto" else self.s.forcing
+        self.period_estimate = pe
+        self._imu_t, self._imu_w = [], []
+        cfg = EstimatorConfig(
+            period=pe.period,
+            sample_time=self.sample_time,
+            forcing=2 if forcing == "two_periods" else forcing,
+            phases=self.s.phases,
+            window=self.s.window,
+            updates_per_period=self.s.updates_per_period,
+            method=self.s.method,
+            max_rank=self.s.max_rank,
+            noise_std=None if self.s.noise_std < 0 else self.s.noise_std,
+            scale_groups=self.scale_groups,
+            policy=VerdictPolicy(self.s.margin, self.s.hysteresis, self.s.z, self.s.confirm),
+        )
+        channels = self._buffer[0][1].size
+        self.estimator = StreamingEstimator(cfg, channels)
+        self.state = "running"
+        out = []
+        for t, v in self._buffer:
+            out.extend(self._push(t, v))
+        self._buffer = []
+        return out
+
+    def _push(self, t: float, values: np.ndarray) -> list[Estimate]:
+        est = self.estimator.push(t, values)
+        if est is None:
+            return []
+        self.refits += 1
+        self.latest = est
+        if est.unstable and self.flag_time is None:
+            self.flag_time = est.time
+        return [est]
+
+    @property
+    def forcing(self) -> str:
+        return "" if self.estimator is None else str(self.estimator.cfg.forcing)
