@@ -127,3 +127,36 @@ def values(type_name: str, msg) -> tuple:
     if type_name == "diagnostic_msgs/msg/DiagnosticArray":
         return tuple((s.name, tuple((kv.key, kv.value) for kv in s.values)) for s in msg.status)
     raise KeyError(type_name)
+
+
+RELIABLE_OFFER = {
+    "history": "unknown",
+    "depth": 0,
+    "reliability": "reliable",
+    "durability": "volatile",
+    "deadline": {"sec": 9223372036, "nsec": 854775807},
+    "lifespan": {"sec": 9223372036, "nsec": 854775807},
+    "liveliness": "automatic",
+    "liveliness_lease_duration": {"sec": 9223372036, "nsec": 854775807},
+    "avoid_ros_namespace_conventions": False,
+}  # fmt: skip  (what discovery reports for an rclpy reliable publisher)
+
+
+def write_bag(path, steps: int, t0_ns: int = 1_700_000_000_000_000_000, **writer_options) -> list[tuple]:
+    """Write ``steps`` steps of the mix with the in-process BagWriter (1 ms log-time spacing per step).
+
+    Returns the written ``(topic, type, log_time_ns, data)`` list in write order.
+    """
+    from amb_bag.writer import BagWriter
+
+    writer = BagWriter(path, **writer_options)
+    ids = {t: writer.add_topic(t, ty, [RELIABLE_OFFER]) for t, ty in TOPICS.items()}
+    written = []
+    for k in range(steps):
+        for i, (topic, type_name, msg) in enumerate(step_messages(k)):
+            log = t0_ns + k * 1_000_000 + i
+            data = serialize(msg, type_name)
+            writer.write(ids[topic], log, data, log - 500)
+            written.append((topic, type_name, log, data))
+    writer.close()
+    return written

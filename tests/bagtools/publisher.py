@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import mix  # noqa: E402
+import mix
 
 
 def main() -> None:
@@ -46,8 +46,11 @@ def main() -> None:
     pubs = {}
     for topic, type_name in mix.TOPICS.items():
         latched = topic == "/stability/unstable"
-        qos = QoSProfile(depth=1 if latched else args.depth, reliability=ReliabilityPolicy.RELIABLE if latched else rel,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)  # fmt: skip
+        qos = QoSProfile(
+            depth=1 if latched else args.depth,
+            reliability=ReliabilityPolicy.RELIABLE if latched else rel,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+        )
         pubs[topic] = node.create_publisher(message_class(type_name), topic, qos)
     end = time.monotonic() + args.wait_subscribers
     while time.monotonic() < end and any(p.get_subscription_count() == 0 for p in pubs.values()):
