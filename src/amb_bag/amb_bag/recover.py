@@ -39,15 +39,18 @@ RECOVERY_KEY = "amb_bag.recovery"
 _INDEX = re.compile(r"_(\d+)\.mcap$")
 
 
-def _bag_dir(path) -> Path:
+def _bag_dir(path) -> tuple[Path, Path | None]:
+    """(bag folder, the single .mcap file asked for or None)."""
     path = Path(path)
     if not path.exists():
         raise BagError(f"{path} does not exist")
     if path.is_file():
-        if path.suffix != ".mcap" and path.name != METADATA_FILE:
+        if path.name == METADATA_FILE:
+            return path.parent, None
+        if path.suffix != ".mcap":
             raise BagFormatError(f"{path} is not a bag folder or an .mcap file")
-        path = path.parent
-    return path
+        return path.parent, path
+    return path, None
 
 
 def _files(bag_dir: Path) -> tuple[list[Path], dict | None, str | None]:
@@ -90,6 +93,13 @@ def verify_file(path: Path) -> _FileScan:
     """Read a whole file the strict way (summary, footer, CRCs); ``problem`` says what failed."""
     scan = _FileScan(path)
     check_mcap_magic(path)
+    with open(path, "rb") as f:
+        try:
+            profile = SeekingReader(f).get_header().profile
+        except READ_ERRORS:
+            profile = PROFILE  # an unreadable header is damage, found below
+    if profile != PROFILE:
+        raise BagFormatError(f"{path} is an MCAP file but not a ROS 2 bag (profile {profile!r})")
     try:
         with damaged_is_format_error(path, ""), open(path, "rb") as f:
             reader = SeekingReader(f, validate_crcs=True)
@@ -152,29 +162,33 @@ def _progress(bag_dir: Path) -> dict:
 def check(path, repair: bool = True) -> dict:
     """Verify the bag at ``path``; if damaged (and ``repair``), recover it.  Returns the report dict.
 
-    Report keys: ``bag``, ``status`` ('ok' | 'recovered' | 'damaged'), ``files`` (per file: problem,
-    messages), ``topics`` (per topic: recovered, received, published, lost_at_least), ``recovered_messages``,
-    ``lost_at_least``.
+    ``path`` is a bag folder, or one .mcap file (alone, it is checked and recovered in place, without a
+    metadata.yaml).  Report keys: ``bag``, ``status`` ('ok' | 'recovered' | 'damaged'), ``files`` (per file:
+    problem, messages), ``topics`` (per topic: recovered, received, published, lost_at_least),
+    ``recovered_messages``, ``lost_at_least``.
     """
-    bag_dir = _bag_dir(path)
-    files, meta, meta_problem = _files(bag_dir)
+    bag_dir, single = _bag_dir(path)
+    lone = single is not None and not (bag_dir / METADATA_FILE).exists() and not (bag_dir / PROGRESS_FILE).exists()
+    files, meta, meta_problem = ([single], None, None) if lone else _files(bag_dir)
     scans = [verify_file(f) for f in files]
     damaged = [s for s in scans if s.problem]
     if damaged:
         scans = [salvage_file(s.path) if s.problem else s for s in scans]
-    if not damaged and meta is not None and meta["message_count"] == sum(sum(s.counts.values()) for s in scans):
-        rows = _rows(scans, {})
-        return _report(bag_dir, "ok", scans, rows, [])
-    progress = _progress(bag_dir)
+    where = single if lone else bag_dir
+    intact_meta = lone or (meta is not None and meta["message_count"] == sum(sum(s.counts.values()) for s in scans))
+    if not damaged and intact_meta:
+        return _report(where, "ok", scans, _rows(scans, {}), [])
+    progress = {} if lone else _progress(bag_dir)
     rows = _rows(scans, progress)
     if not repair:
-        return _report(bag_dir, "damaged", scans, rows, damaged, meta_problem)
+        return _report(where, "damaged", scans, rows, damaged, meta_problem)
     for scan in scans:
         if getattr(scan, "messages", None) is not None:
             _rewrite(scan)
-    report = _report(bag_dir, "recovered", scans, rows, damaged, meta_problem)
-    _write_metadata(bag_dir, scans, rows, report)
-    (bag_dir / PROGRESS_FILE).unlink(missing_ok=True)
+    report = _report(where, "recovered", scans, rows, damaged, meta_problem)
+    if not lone:
+        _write_metadata(bag_dir, scans, rows, report)
+        (bag_dir / PROGRESS_FILE).unlink(missing_ok=True)
     return report
 
 
