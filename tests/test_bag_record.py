@@ -1,0 +1,229 @@
+"""Recording over DDS (spawned processes, localhost only): completeness, loss accounting, crash recovery, replay.
+
+The test publisher (tests/bagtools/publisher.py) publishes the DESIGN.md topic mix as raw CDR bytes and logs
+exactly what it sent; the recorder must hold every message, byte for byte, and independent readers (rosbags,
+mcap_ros2) must decode the values the publisher generated.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import pickle
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from procs import spawn
+
+sys.path.insert(0, str(Path(__file__).parent / "bagtools"))
+import mix
+
+from amb_bag import cli
+from amb_bag.loss import CUSTOM_KEY
+from amb_bag.metadata import custom_json, load_metadata
+
+pytestmark = pytest.mark.ros
+PUBLISHER = Path(__file__).parent / "bagtools" / "publisher.py"
+STEPS = 1000
+RUN_TIMEOUT_S = 90
+
+
+def _by_topic(pairs) -> dict[str, list[bytes]]:
+    out = defaultdict(list)
+    for topic, data in pairs:
+        out[topic].append(data)
+    return dict(out)
+
+
+def _record(tmp: Path, venv_bin: Path, name: str, rec_args=(), pub_args=(), steps=STEPS, rate=1000):
+    """Record one publisher run; returns (bag, sent [(topic, bytes)], recorder log text)."""
+    bag, sent = tmp / name, tmp / f"{name}-sent.pkl"
+    rec_cmd = [str(venv_bin / "amb-bag"), "record", "-o", str(bag), *rec_args]
+    pub_cmd = [sys.executable, str(PUBLISHER), "--steps", str(steps), "--rate", str(rate), "--log", str(sent),
+               "--wait-subscribers", "30", *pub_args]  # fmt: skip
+    with spawn(rec_cmd, tmp / f"{name}-rec.log") as rec:
+        assert rec.wait_for("recording to", 30), rec.text()
+        with spawn(pub_cmd, tmp / f"{name}-pub.log") as pub:
+            assert pub.wait(RUN_TIMEOUT_S) == 0, pub.text()
+            assert "publisher: subscribed 9" in pub.text(), pub.text()
+        assert rec.stop() == 0, rec.log.read_text()
+        return bag, pickle.loads(sent.read_bytes()), rec.log.read_text()
+
+
+def _bag_bytes(bag: Path) -> dict[str, list[bytes]]:
+    from rosbags.rosbag2 import Reader
+
+    with Reader(bag) as reader:
+        return _by_topic((c.topic, bytes(raw)) for c, _, raw in reader.messages())
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory, venv_bin):
+    tmp = tmp_path_factory.mktemp("bagrun")
+    return _record(tmp, venv_bin, "run")
+
+
+def test_every_message_recorded_byte_equal(run):
+    bag, sent, _ = run
+    recorded, expected = _bag_bytes(bag), _by_topic(sent)
+    assert set(expected) == set(mix.TOPICS)
+    for topic in mix.TOPICS:
+        assert len(recorded[topic]) == len(expected[topic]), topic
+        assert recorded[topic] == expected[topic], topic
+    assert len(expected["/clock"]) == STEPS and len(expected["/diagnostics"]) == STEPS // 100 + 1
+
+
+def test_loss_statistics_are_zero_and_match_the_publisher(run):
+    bag, sent, log = run
+    rows = custom_json(load_metadata(bag), CUSTOM_KEY)
+    counts = {t: len(v) for t, v in _by_topic(sent).items()}
+    for topic in mix.TOPICS:
+        assert rows[topic] == {"received": counts[topic], "published": counts[topic], "lost": 0, "extra": 0}
+    assert "lost in total: 0" in log
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # mcap_ros2.reader warns about its ROS 1 sibling
+def test_independent_readers_decode_the_sent_values(run):
+    from mcap_ros2.reader import read_ros2_messages
+    from rosbags.rosbag2 import Reader
+
+    bag, sent, _ = run
+    expected = defaultdict(list)
+    for topic, data in sent:
+        expected[topic].append(mix.values(mix.TOPICS[topic], mix.TS.deserialize_cdr(data, mix.TOPICS[topic])))
+    got = defaultdict(list)
+    with Reader(bag) as reader:
+        for c, _, raw in reader.messages():
+            got[c.topic].append(mix.values(c.msgtype, mix.TS.deserialize_cdr(raw, c.msgtype)))
+    got2 = defaultdict(list)
+    for path in sorted(bag.glob("*.mcap")):
+        for m in read_ros2_messages(path):
+            got2[m.channel.topic].append(mix.values(m.schema.name, m.ros_msg))
+    for topic in mix.TOPICS:
+        assert got[topic] == expected[topic] == got2[topic], topic
+    # the values are the generated ones: step 10's displacement is 1e-5 sin(0.1 i + 0.01)
+    assert expected["/amb/displacement"][10][3:] == pytest.approx(tuple(1e-5 * np.sin(np.arange(1, 5) * 0.1 + 0.01)))
+
+
+def test_info_and_plot_series_from_the_recorded_run(run, tmp_path, capsys):
+    from amb_bag.plot import read_series
+    from amb_bag.reader import Bag
+
+    bag, sent, _ = run
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["info", str(bag), "--json"])
+    assert exc.value.code == 0
+    info = json.loads(capsys.readouterr().out)
+    counts = {t: len(v) for t, v in _by_topic(sent).items()}
+    assert {t["name"]: t["message_count"] for t in info["topics"] if t["name"] in mix.TOPICS} == counts
+    assert info["message_count"] >= len(sent) and 0.5 < info["duration_s"] < 30
+    series = read_series(Bag(bag))
+    t, rho, _ = series["/stability/multipliers"]
+    k = np.arange(0, STEPS, mix.MULTIPLIER_EVERY)
+    assert rho[:, 0] == pytest.approx(np.hypot(0.9 + 1e-4 * k, 0.1), rel=1e-12)  # max |mu| of the sent pairs
+    t_disp, _, names = series["/amb/displacement"]
+    assert names == mix.CHANNELS and t_disp == pytest.approx(np.arange(STEPS) * mix.STEP_S, abs=1e-9)
+    assert t == pytest.approx(k * mix.STEP_S, abs=2e-3)  # log time mapped through /clock to simulated time
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["plot", str(bag), "--out", str(tmp_path / "run.png")])
+    assert exc.value.code == 0 and (tmp_path / "run.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_slow_recorder_reports_loss(tmp_path, venv_bin):
+    # Test-only slowness: 2 ms per message and KEEP_LAST 2 subscriptions, against a publisher flat out.
+    bag, sent, log = _record(tmp_path, venv_bin, "slow", ["--debug-delay-per-message", "0.002", "--qos-depth", "2"],
+                             steps=300, rate=0)  # fmt: skip
+    rows = custom_json(load_metadata(bag), CUSTOM_KEY)
+    counts = {t: len(v) for t, v in _by_topic(sent).items()}
+    recorded = _bag_bytes(bag)
+    for topic in ("/clock", "/amb/displacement", "/amb_plant/state"):
+        row = rows[topic]
+        assert row["published"] == counts[topic] == 300
+        assert row["received"] == len(recorded.get(topic, []))
+        assert row["lost"] == 300 - row["received"] > 0
+    assert f"lost in total: {sum(r['lost'] or 0 for r in rows.values())}" in log
+
+
+def _messages_in_complete_chunks(path: Path) -> int:
+    """Count Message records inside the complete Chunk records of a (crashed) file, with mcap's stream parser."""
+    import zstandard
+    from mcap.exceptions import McapError
+    from mcap.records import Chunk, Message
+    from mcap.stream_reader import StreamReader
+
+    def count(records) -> int:
+        n = 0
+        try:
+            for record in records:
+                if isinstance(record, Chunk):
+                    data = zstandard.decompress(record.data) if record.compression == "zstd" else record.data
+                    n += count(StreamReader(io.BytesIO(data), skip_magic=True).records)
+                n += isinstance(record, Message)
+        except McapError:  # end of a chunk's records, or the truncated tail of the file
+            pass
+        return n
+
+    with open(path, "rb") as f:
+        return count(StreamReader(f, emit_chunks=True).records)
+
+
+def test_kill_9_then_check_recovers_all_complete_chunks(tmp_path, venv_bin, capsys):
+    from rosbags.rosbag2 import Reader
+
+    bag, sent_log, steps = tmp_path / "crash", tmp_path / "crash-sent.pkl", 1500
+    rec_cmd = [str(venv_bin / "amb-bag"), "record", "-o", str(bag), "--flush-interval", "3600",
+               "--progress-interval", "0.1", "--topics", *mix.TOPICS]  # fmt: skip
+    pub_cmd = [sys.executable, str(PUBLISHER), "--steps", str(steps), "--rate", "2000", "--log", str(sent_log),
+               "--wait-subscribers", "30"]  # fmt: skip
+    n_diag = steps // 100 + 1
+    with spawn(rec_cmd, tmp_path / "crash-rec.log") as rec:
+        with spawn(pub_cmd, tmp_path / "crash-pub.log") as pub:
+            assert pub.wait(RUN_TIMEOUT_S) == 0, pub.text()
+        progress_file = bag / ".amb_bag_progress.json"
+        end = time.monotonic() + 20
+        while time.monotonic() < end:  # until the recorder has received everything (partly still in memory)
+            progress = json.loads(progress_file.read_text()) if progress_file.exists() else {}
+            if progress.get("received", {}).get("/diagnostics") == n_diag:
+                break
+            time.sleep(0.05)
+        rec.popen.kill()  # SIGKILL: no chance to write the open chunk, the summary or metadata.yaml
+        rec.popen.wait()
+    sent = _by_topic(pickle.loads(sent_log.read_bytes()))
+    assert progress["received"] == {t: len(v) for t, v in sent.items()}
+    in_chunks = _messages_in_complete_chunks(bag / "crash_0.mcap")
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["check", str(bag), "--json"])
+    assert exc.value.code == cli.EXIT_DAMAGED
+    report = json.loads(capsys.readouterr().out)
+    total = sum(len(v) for v in sent.values())
+    assert report["recovered_messages"] == in_chunks == sum(progress["on_disk"].values())
+    assert report["lost_at_least"] == total - in_chunks > 0  # the open chunk, known from the progress file
+    recovered = _bag_bytes(bag)
+    for topic, data in recovered.items():
+        assert data == sent[topic][: len(data)], topic  # a prefix of what was sent, byte-equal
+    with Reader(bag) as reader:
+        assert reader.message_count == in_chunks
+    assert (bag / "crash_0.mcap.damaged").exists() and not progress_file.exists()
+
+
+def test_play_then_record_again_gives_the_same_messages(run, tmp_path, venv_bin):
+    bag, sent, _ = run
+    again = tmp_path / "again"
+    rec_cmd = [str(venv_bin / "amb-bag"), "record", "-o", str(again), "--topics", *mix.TOPICS]
+    play_cmd = [str(venv_bin / "amb-bag"), "play", str(bag), "--rate", "2", "--wait-for-subscribers", "30",
+                "--topics", *mix.TOPICS]  # fmt: skip
+    with spawn(rec_cmd, tmp_path / "again-rec.log") as rec:
+        assert rec.wait_for("recording to", 30), rec.text()
+        with spawn(play_cmd, tmp_path / "play.log") as player:
+            assert player.wait(RUN_TIMEOUT_S) == 0, player.text()
+        assert f"published {len(sent)} messages" in player.log.read_text()
+        assert rec.stop() == 0, rec.log.read_text()
+    assert _bag_bytes(again) == {t: v for t, v in _bag_bytes(bag).items() if t in mix.TOPICS}
+    first = load_metadata(bag)["duration"]["nanoseconds"]
+    second = load_metadata(again)["duration"]["nanoseconds"]
+    assert second == pytest.approx(first / 2, rel=0.3)  # --rate 2 halves the spacing
