@@ -1,0 +1,235 @@
+"""Recorder throughput for the lockstep message mix: the in-process write path and end to end over DDS.
+
+1. Write path: ``BagWriter.write`` of pre-serialized CDR bytes (what the recorder does per message), per chunk
+   compression.  Goal >= 50,000 msg/s.
+2. End to end: a recorder process (``amb-bag record``) and a publisher process publishing the mix flat out
+   (reliable, KEEP_ALL, so a lagging recorder slows the publisher instead of losing messages); the rate is
+   messages recorded / span of their reception times, and the loss table must be all zeros.
+
+For "lockstep with vs without recording" (the lead's comparison): wrap the lockstep run in
+``amb_bag.launch.RecorderProcess(bag_dir, topics)`` + ``wait_subscribed(topics, timeout)`` ... ``stop()``, and
+run it once without; both runs in the same benchmark invocation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+CHANNELS = ["amb1_y", "amb1_z", "amb5_y", "amb5_z"]
+DOFS = [f"n{n}_{d}" for n in range(1, 8) for d in ("v", "w", "ty", "tz")]
+WRITE_STEPS = 20_000
+E2E_STEPS = 5_000
+GOAL_MSG_S = 50_000
+
+
+def lockstep_mix() -> list[tuple[str, str, bytes]]:
+    """One lockstep step of the DESIGN.md topics as (topic, type, CDR bytes); sizes as the nodes publish them."""
+    from geometry_msgs.msg import Vector3Stamped
+    from rclpy.serialization import serialize_message
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import Imu, JointState
+
+    disp = JointState(name=CHANNELS, position=[1e-5, -2e-5, 3e-5, 4e-6])
+    current = JointState(name=CHANNELS, effort=[0.1, -0.2, 0.3, 0.04])
+    state = JointState(name=DOFS, position=[1e-6] * 28, velocity=[1e-4] * 28)
+    imu = Imu()
+    imu.orientation.w = 1.0
+    return [
+        ("/clock", "rosgraph_msgs/msg/Clock", serialize_message(Clock())),
+        ("/base/imu", "sensor_msgs/msg/Imu", serialize_message(imu)),
+        ("/base/angular_acceleration", "geometry_msgs/msg/Vector3Stamped", serialize_message(Vector3Stamped())),
+        ("/amb/displacement", "sensor_msgs/msg/JointState", serialize_message(disp)),
+        ("/amb/current", "sensor_msgs/msg/JointState", serialize_message(current)),
+        ("/amb_plant/state", "sensor_msgs/msg/JointState", serialize_message(state)),
+    ]
+
+
+def bench_write_path(tmp: Path, compression: str, steps: int = WRITE_STEPS) -> dict:
+    """Messages per second through BagWriter.write (in-process, file on disk, close included)."""
+    from amb_bag.writer import BagWriter
+
+    offer = [{"history": "keep_last", "depth": 1000, "reliability": "reliable", "durability": "volatile"}]
+    mix = lockstep_mix()
+    bag = tmp / f"write_{compression}"
+    writer = BagWriter(bag, compression=compression)
+    ids = [writer.add_topic(t, ty, offer) for t, ty, _ in mix]
+    items = [(i, data) for i, (_, _, data) in zip(ids, mix, strict=True)]
+    write, t_ns = writer.write, time.time_ns()
+    t0 = time.perf_counter()
+    for k in range(steps):
+        stamp = t_ns + k * 200_000
+        for tid, data in items:
+            write(tid, stamp, data, stamp)
+    writer.close()
+    seconds = time.perf_counter() - t0
+    n = steps * len(items)
+    size = sum(f.stat().st_size for f in bag.glob("*.mcap"))
+    return {"messages": n, "seconds": seconds, "msg_per_s": n / seconds, "bytes_per_msg_on_disk": size / n}
+
+
+def flood_publisher(steps: int, diagnostics: bool = True) -> None:
+    """Child process: publish ``steps`` lockstep steps flat out, then a /diagnostics report with the counts."""
+    from amb_ros.env import ensure_localhost_dds
+
+    ensure_localhost_dds()
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    from rclpy.duration import Duration
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    from amb_bag.msgdefs import message_class
+
+    rclpy.init()
+    node = rclpy.create_node("bag_bench_flood", enable_rosout=False)
+    qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+    mix = lockstep_mix()
+    pubs = [node.create_publisher(message_class(ty), t, qos) for t, ty, _ in mix]
+    diag = node.create_publisher(DiagnosticArray, "/diagnostics", qos)
+    while any(p.get_subscription_count() == 0 for p in [*pubs, diag] if diagnostics or p is not diag):
+        time.sleep(0.02)
+    time.sleep(0.2)
+    items = [(p.publish, data) for p, (_, _, data) in zip(pubs, mix, strict=True)]
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        for publish, data in items:
+            publish(data)
+    seconds = time.perf_counter() - t0
+    status = DiagnosticStatus(name="bag_bench_flood", values=[KeyValue(key=f"published {t}", value=str(steps))
+                                                              for t, _, _ in mix])  # fmt: skip
+    status.values.append(KeyValue(key="published /diagnostics", value="1"))
+    if diagnostics:
+        diag.publish(DiagnosticArray(status=[status]))
+    for p in [*pubs, diag]:
+        p.wait_for_all_acked(Duration(seconds=30))
+    print(f"flood: published {steps * len(mix)} in {seconds:.3f} s", flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def bare_sink(expected: int) -> None:
+    """Child process: the DDS limit. Raw subscriptions drained with take_message, nothing written."""
+    from amb_ros.env import ensure_localhost_dds
+
+    ensure_localhost_dds()
+    import rclpy
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    from amb_bag.msgdefs import message_class
+
+    rclpy.init()
+    node = rclpy.create_node("bag_bench_sink", enable_rosout=False)
+    qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+    subs = [node.create_subscription(message_class(ty), t, lambda _m: None, qos, raw=True) for t, ty, _ in
+            lockstep_mix()]  # fmt: skip
+    wait_set = _rclpy.WaitSet(len(subs), 0, 0, 0, 0, 0, node.context.handle)
+    n, first, last, give_up = 0, None, None, time.monotonic() + 60
+    while n < expected and time.monotonic() < give_up:
+        wait_set.clear_entities()
+        for sub in subs:
+            wait_set.add_subscription(sub.handle)
+        wait_set.wait(100_000_000)
+        for sub in subs:
+            while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
+                last = taken[1]["received_timestamp"]
+                first = first or last
+                n += 1
+                give_up = time.monotonic() + 5  # stop 5 s after the last message if some never come
+    print(f"sink: received {n} in {(last - first) * 1e-9 if n else 0:.6f} s", flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _sink_baseline(steps: int) -> dict:
+    """Messages/s a bare raw subscriber receives from the same flood (measured in the same run)."""
+    import subprocess
+
+    expected = steps * len(lockstep_mix())
+    sink = subprocess.Popen([sys.executable, __file__, "--sink", str(expected)], stdout=subprocess.PIPE, text=True)
+    try:
+        pub = subprocess.run([sys.executable, __file__, "--flood", str(steps), "--no-diagnostics"],
+                             capture_output=True, text=True, timeout=600)  # fmt: skip
+        out, _ = sink.communicate(timeout=120)
+    finally:
+        if sink.poll() is None:
+            sink.kill()
+            sink.wait()
+    if pub.returncode != 0 or sink.returncode != 0:
+        raise RuntimeError("baseline sink or publisher failed")
+    n, seconds = int(out.split()[2]), float(out.split()[4])
+    return {"messages": n, "seconds": seconds, "msg_per_s": n / seconds}
+
+
+def bench_end_to_end(tmp: Path, steps: int = E2E_STEPS) -> dict:
+    """Recorder process vs a flat-out publisher process over DDS (localhost)."""
+    import subprocess
+
+    from amb_bag.launch import RecorderProcess
+    from amb_bag.metadata import load_metadata
+
+    bag = tmp / "e2e"
+    topics = [t for t, _, _ in lockstep_mix()] + ["/diagnostics"]
+    with RecorderProcess(bag, topics=topics, log_path=tmp / "e2e-record.log") as rec:
+        pub = subprocess.run([sys.executable, __file__, "--flood", str(steps)], capture_output=True, text=True,
+                             timeout=600)  # fmt: skip
+        if pub.returncode != 0:
+            raise RuntimeError(f"flood publisher failed: {pub.stderr.strip()[-300:]}")
+        rc = rec.stop()
+    if rc != 0:
+        raise RuntimeError(f"recorder exited {rc}: {rec.text()[-300:]}")
+    meta = load_metadata(bag)
+    data_topics = [e for e in meta["topics_with_message_count"] if e["topic_metadata"]["name"] != "/diagnostics"]
+    n = sum(e["message_count"] for e in data_topics)
+    seconds = meta["duration"]["nanoseconds"] * 1e-9
+    pub_seconds = float(pub.stdout.split(" in ")[1].split()[0])
+    rows = rec.loss()
+    return {
+        "messages": n,
+        "expected": steps * len(data_topics),
+        "seconds": seconds,
+        "msg_per_s": n / seconds,
+        "publisher_msg_per_s": steps * len(data_topics) / pub_seconds,
+        "lost": sum(r["lost"] or 0 for r in rows.values()),
+    }
+
+
+def main() -> dict:
+    tmp = Path(tempfile.mkdtemp(prefix="bench_bag_"))
+    try:
+        write = {c: bench_write_path(tmp, c) for c in ("zstd", "lz4", "none")}
+        e2e = bench_end_to_end(tmp)
+        e2e["bare_subscriber"] = _sink_baseline(E2E_STEPS)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    print("recorder throughput, lockstep mix (clock, imu, angular acc., displacement, current, 28-DOF state)")
+    for c, r in write.items():
+        print(f"  write path, {c:<4}  {r['msg_per_s']:10,.0f} msg/s  {r['bytes_per_msg_on_disk']:6.1f} B/msg on disk "
+              f"(goal >= {GOAL_MSG_S:,}: {'ok' if r['msg_per_s'] >= GOAL_MSG_S else 'MISSED'})")  # fmt: skip
+    print(f"  end to end over DDS {e2e['msg_per_s']:10,.0f} msg/s recorded ({e2e['messages']}/{e2e['expected']} "
+          f"messages, lost {e2e['lost']}); publisher alone {e2e['publisher_msg_per_s']:,.0f} msg/s")  # fmt: skip
+    base = e2e["bare_subscriber"]["msg_per_s"]
+    print(f"  bare raw subscriber (DDS limit, same flood) {base:10,.0f} msg/s")
+    print(f"  ratio recorder / bare subscriber: {e2e['msg_per_s'] / base:.2f}")
+    return {"write_path": write, "end_to_end": e2e}
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--flood", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--no-diagnostics", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--sink", type=int, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.flood:
+        flood_publisher(args.flood, diagnostics=not args.no_diagnostics)
+    elif args.sink:
+        bare_sink(args.sink)
+    else:
+        from amb_ros.env import ensure_localhost_dds
+
+        ensure_localhost_dds()
+        main()
