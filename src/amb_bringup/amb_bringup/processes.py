@@ -1,0 +1,114 @@
+"""What a run starts: the node processes and any extra processes (recorder, monitor), as ProcessSpecs.
+
+Each node gets one ROS params file (written to the run's log folder) with the common parameters under ``/**``
+and its own under its node name, so that values with commas or brackets need no shell or YAML-inline quoting.
+
+Extension hook: ``EXTRA_PROCESSES`` is a list of functions ``f(args, run_dir) -> ProcessSpec | None`` called
+after the core nodes are built; ``amb-bag record`` for ``--bag`` is registered here, and a stability monitor
+can be added the same way (its diagnostics then appear in the summary under its node name).
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import yaml
+
+from .supervisor import ProcessSpec
+
+NODES = {  # name in amb-rig -> (ROS package, ros2 run executable, venv console script, ROS node name)
+    "base_motion": ("base_motion", "base_motion", "amb-base-motion", "base_motion"),
+    "controller": ("amb_controller", "controller", "amb-controller", "amb_controller"),
+    "plant": ("amb_plant", "plant", "amb-plant", "amb_plant"),
+}
+
+
+def resolve_executable(package: str, ros_exe: str, script: str) -> str:
+    """The venv's console script next to this interpreter, else PATH, else the ament index (ros2 run layout)."""
+    here = Path(sys.executable).parent / script
+    if here.is_file():
+        return str(here)
+    found = shutil.which(script)
+    if found:
+        return found
+    try:
+        from ament_index_python.packages import get_package_prefix
+
+        path = Path(get_package_prefix(package)) / "lib" / package / ros_exe
+        if path.is_file():
+            return str(path)
+    except Exception:  # no ament index in this environment: fall through to the clear error below
+        pass
+    raise FileNotFoundError(f"cannot find the executable of {package} ({script} or lib/{package}/{ros_exe})")
+
+
+def node_parameters(args) -> tuple[dict, dict[str, dict]]:
+    """(common, per-node) parameters for a run."""
+    sets = list(args.set)
+    if args.motion is not None:
+        sets.append(f"base_motion.kind={args.motion}")
+    if args.amplitude is not None:
+        sets.append(f"base_motion.amplitude={args.amplitude!r}")
+    if args.frequency is not None:
+        sets.append(f"base_motion.frequency={args.frequency!r}")
+    common: dict = {"mode": args.mode}
+    if args.config:
+        common["config_file"] = str(Path(args.config).resolve())
+    if sets:
+        common["set"] = sets
+    per = {name: {} for name in NODES}
+    per["plant"]["duration_s"] = float(args.duration) if not args.no_plant else 0.0
+    per["plant"]["start_timeout_s"] = float(args.start_timeout)
+    if getattr(args, "bag", None):
+        per["plant"]["min_subscribers"] = 2  # the controller and the recorder: record from the first sample
+    for item in args.param:
+        node, _, rest = item.partition(":")
+        key, sep, raw = rest.partition("=")
+        if node not in per or not sep or not key:
+            raise ValueError(f"--param {item!r}: expected NODE:NAME=VALUE with NODE one of {', '.join(per)}")
+        per[node][key] = yaml.safe_load(raw)
+    return common, per
+
+
+def write_params_file(path: Path, common: dict, per: dict[str, dict]) -> None:
+    doc = {"/**": {"ros__parameters": common}}
+    for name, params in per.items():
+        if params:
+            doc[NODES[name][3]] = {"ros__parameters": params}
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+
+
+def node_specs(args, run_dir: Path) -> list[ProcessSpec]:
+    common, per = node_parameters(args)
+    params = run_dir / "params.yaml"
+    write_params_file(params, common, per)
+    names = ["base_motion", "controller"] + ([] if args.no_plant else ["plant"])
+    specs = []
+    for name in names:
+        package, ros_exe, script, node = NODES[name]
+        cmd = [resolve_executable(package, ros_exe, script), "--ros-args", "--params-file", str(params)]
+        specs.append(ProcessSpec(name, cmd, node=node, ends_run=(name == "plant")))
+    return specs
+
+
+def bag_process(args, run_dir: Path) -> ProcessSpec | None:
+    """``amb-bag record -o DIR`` when --bag is given and amb-bag is installed."""
+    if not getattr(args, "bag", None):
+        return None
+    exe = Path(sys.executable).parent / "amb-bag"
+    exe = str(exe) if exe.is_file() else shutil.which("amb-bag")
+    if exe is None:
+        raise FileNotFoundError("--bag needs the amb-bag recorder, which is not installed")
+    return ProcessSpec("recorder", [exe, "record", "-o", str(args.bag)], node="amb_bag_recorder", required=True)
+
+
+EXTRA_PROCESSES: list[Callable[..., ProcessSpec | None]] = [bag_process]
+
+
+def all_specs(args, run_dir: Path) -> list[ProcessSpec]:
+    """Extras first (a recorder must be listening before the first sample), then the nodes, plant last."""
+    extras = [spec for f in EXTRA_PROCESSES if (spec := f(args, run_dir)) is not None]
+    return extras + node_specs(args, run_dir)

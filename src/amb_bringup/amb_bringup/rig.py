@@ -1,0 +1,201 @@
+"""amb-rig: run the node suite as separate processes (no launch system) and summarise the run.
+
+    amb-rig run --duration 5 --motion pitch --amplitude 0.3 --frequency 24.5 [--mode lockstep|realtime]
+                [--set key=value]... [--config F] [--param NODE:NAME=VALUE]... [--json] [--no-plant] [--bag DIR]
+
+Sequence: reserve a DDS domain (localhost only), start amb-rig's diagnostics collector, start the processes
+(extras, base_motion, controller, plant), wait (bounded by --start-timeout) until every node reports on
+/diagnostics and the plant reports that it runs (the plant itself waits until controller and base motion are
+matched), then wait for the plant to finish its --duration (or, with --no-plant, for --duration of wall time),
+stop everything cleanly and print the summary.  Exit code 0 only if every process ran and ended as expected
+and no node ended with an ERROR diagnostic; 1 otherwise; 2 for bad arguments; 130/143 when interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from amb_dynamics.config import load_config
+from amb_dynamics.errors import AmbError
+from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds
+
+from .processes import all_specs
+from .summary import build_summary, format_summary
+from .supervisor import Supervisor, describe_exit
+
+EXIT_FAILED, EXIT_USAGE = 1, 2
+
+
+def parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="amb-rig", description="Run the AMB rig node suite.")
+    sub = ap.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("run", help="start the nodes, run, stop, summarise")
+    r.add_argument("--duration", type=float, default=5.0, help="run length: simulated s (lockstep), wall s (realtime)")
+    r.add_argument("--motion", choices=("none", "roll", "pitch", "yaw", "combined"), help="base motion kind")
+    r.add_argument("--amplitude", type=float, help="base motion amplitude (rad)")
+    r.add_argument("--frequency", type=float, help="base motion angular frequency (rad/s)")
+    r.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
+    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override (repeatable)")
+    r.add_argument("--config", help="rotor config YAML (default: the seed rotor)")
+    r.add_argument("--param", action="append", default=[], metavar="NODE:NAME=VALUE",
+                   help="node parameter, NODE one of base_motion, controller, plant (repeatable)")  # fmt: skip
+    r.add_argument("--json", action="store_true", help="print the summary as JSON")
+    r.add_argument("--no-plant", action="store_true", help="no plant: a real rig supplies /amb/displacement")
+    r.add_argument("--bag", help="record the run with amb-bag into this folder")
+    r.add_argument("--log-dir", help="folder for the node logs and params file (default: a new temp folder)")
+    r.add_argument("--start-timeout", type=float, default=60.0, help="bound on start-up and connection (s)")
+    r.add_argument("--timeout", type=float, help="bound on the whole run (wall s; default from the duration)")
+    return ap
+
+
+class Interrupted:
+    def __init__(self):
+        self.signum: int | None = None
+
+    def __call__(self, signum, _frame) -> None:
+        self.signum = signum
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = parser().parse_args(argv)
+    try:
+        ensure_localhost_dds()
+        cfg = load_config(args.config, args.set)  # validate before starting anything
+    except (AmbError, DdsEnvError) as exc:
+        raise SystemExit(f"amb-rig: {exc}") from None
+    if args.duration <= 0 and not args.no_plant:
+        raise SystemExit("amb-rig: --duration must be > 0 s")
+    sys.exit(run(args, cfg))
+
+
+def run(args, cfg) -> int:
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    from .collector import DiagnosticsCollector
+
+    log_dir = Path(args.log_dir) if args.log_dir else Path(tempfile.mkdtemp(prefix="amb-rig-"))
+    log_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        specs = all_specs(args, log_dir)
+    except (FileNotFoundError, ValueError) as exc:
+        print(f"amb-rig: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    interrupted = Interrupted()
+    signal.signal(signal.SIGINT, interrupted)
+    signal.signal(signal.SIGTERM, interrupted)
+    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
+    collector = DiagnosticsCollector()
+    sup = Supervisor(log_dir, child_env(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1"))
+    errors: list[str] = []
+    t0 = time.monotonic()
+    try:
+        for spec in specs:
+            child = sup.start(spec)
+            if not args.json:
+                print(f"amb-rig: started {spec.name} (pid {child.pid}), log {child.log}", flush=True)
+        if not errors:
+            errors += wait_run(args, sup, collector, interrupted)
+    finally:
+        sup.stop_all()
+        time.sleep(0.2)  # final diagnostics were acknowledged before the nodes exited; let the thread store them
+        collector.close()
+        rclpy.try_shutdown()
+    errors += judge(sup, collector, interrupted)
+    motion = (args.motion or cfg.base_motion.kind, args.amplitude, args.frequency)
+    run_info = {
+        "mode": args.mode,
+        "motion": f"{motion[0]} A={_g(motion[1], cfg.base_motion.amplitude)} rad "
+        f"w={_g(motion[2], cfg.base_motion.frequency)} rad/s",
+        "duration_s": args.duration,
+        "rate_hz": load_config(args.config, args.set).controller.rate_hz,
+        "run_wall_s": round(time.monotonic() - t0, 3),
+        "log_dir": str(log_dir),
+        "interrupted": interrupted.signum is not None,
+    }
+    summary = build_summary(run_info, sup.children, collector, errors)
+    print(json.dumps(summary, indent=2) if args.json else format_summary(summary), flush=True)
+    if interrupted.signum is not None:
+        return 128 + interrupted.signum
+    return 0 if summary["ok"] else EXIT_FAILED
+
+
+def _g(value, default) -> str:
+    return f"{value if value is not None else default:g}"
+
+
+def default_timeout(args) -> float:
+    """Wall-time bound of a run: generous (100 lockstep steps/s would still finish), never endless."""
+    if args.mode == "realtime" or args.no_plant:
+        return 60.0 + args.duration
+    rate = load_config(args.config, args.set).controller.rate_hz
+    return 120.0 + args.duration * rate / 100.0
+
+
+def wait_run(args, sup: Supervisor, collector, interrupted) -> list[str]:
+    """Wait for start-up, then for the end of the run; return error messages (empty: all went well)."""
+    plant = sup.find("plant")
+    nodes = [c for c in sup.children if c.spec.node]
+    start_deadline = time.monotonic() + args.start_timeout
+    while interrupted.signum is None:  # start-up: every node reports, the plant is past its connection wait
+        if plant is not None and plant.poll() is not None:
+            break
+        if sup.died_early():
+            break
+        silent = [c.spec.name for c in nodes if not collector.seen(c.spec.node)]
+        plant_diag = collector.get(plant.spec.node) if plant is not None else None
+        waiting = plant is not None and (plant_diag is None or plant_diag["values"].get("steps") in (None, "0"))
+        waiting = waiting and not (plant_diag and plant_diag["message"].startswith(("running", "finished")))
+        if not silent and not waiting:
+            break
+        if time.monotonic() > start_deadline:
+            who = ", ".join(silent) if silent else "the plant (still waiting for its peers)"
+            return [f"start-up timed out after {args.start_timeout:g} s: no report from {who}"]
+        time.sleep(0.05)
+    run_start = time.monotonic()
+    limit = args.timeout if args.timeout else default_timeout(args)
+    while interrupted.signum is None:
+        if sup.died_early():
+            break
+        if plant is not None:
+            if plant.poll() is not None:
+                break
+        elif time.monotonic() - run_start >= args.duration:
+            break
+        if time.monotonic() - run_start > limit:
+            return [f"run timed out after {limit:g} s of wall time (--timeout)"]
+        time.sleep(0.05)
+    return []
+
+
+def judge(sup: Supervisor, collector, interrupted) -> list[str]:
+    """Errors from exit codes and final diagnostics, plant first (its message says why a run stopped)."""
+    errors = []
+    ordered = sorted(sup.children, key=lambda c: not c.spec.ends_run)
+    for c in ordered:
+        code = c.popen.returncode
+        diag = collector.get(c.spec.node) if c.spec.node else None
+        if c.spec.ends_run and interrupted.signum is None and (c.stopped_by_us or code != 0):
+            reason = diag["message"] if diag and diag["level"] == "ERROR" else c.last_line()
+            errors.append(f"{c.spec.name} did not finish ({describe_exit(code)}): {reason}")
+        elif not c.spec.ends_run and not c.stopped_by_us and c.spec.required:
+            errors.append(f"{c.spec.name} exited unexpectedly ({describe_exit(code)}): {c.last_line()}")
+        elif c.stopped_by_us and code == -signal.SIGINT and not (c.spec.node and collector.seen(c.spec.node)):
+            pass  # stopped while still importing, before it could install its handlers: nothing to clean up
+        elif c.stopped_by_us and code not in (0, None):
+            errors.append(f"{c.spec.name} did not stop cleanly ({describe_exit(code)}): {c.last_line()}")
+        elif diag is not None and diag["level"] == "ERROR":
+            errors.append(f"{c.spec.name} reported ERROR: {diag['message']}")
+        elif c.spec.node and diag is None:
+            errors.append(f"{c.spec.name} published no diagnostics (see {c.log})")
+    return errors
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,80 @@
+"""The summary of a run, from each node's final /diagnostics and each process's exit (dict and text)."""
+
+from __future__ import annotations
+
+from .supervisor import Child, describe_exit
+
+
+def _num(values: dict, key: str, default=None):
+    try:
+        return float(values[key])
+    except (KeyError, ValueError):
+        return default
+
+
+def build_summary(run: dict, children: list[Child], collector, errors: list[str]) -> dict:
+    """Plain-data summary; ``ok`` is False if ``errors`` is not empty."""
+    nodes = {}
+    for c in children:
+        diag = collector.get(c.spec.node) if (collector is not None and c.spec.node) else None
+        nodes[c.spec.name] = {
+            "pid": c.pid,
+            "exit": describe_exit(c.popen.returncode),
+            "exit_code": c.popen.returncode,
+            "stopped_by_amb_rig": c.stopped_by_us,
+            "log": str(c.log),
+            "level": diag["level"] if diag else "NONE",
+            "message": diag["message"] if diag else "no diagnostics received",
+            "final": bool(diag and diag["final"]),
+            "values": diag["values"] if diag else {},
+        }
+    out = {"ok": not errors, "errors": list(errors), **run, "nodes": nodes}
+    plant = nodes.get("plant", {}).get("values", {})
+    if plant:
+        out["steps"] = int(_num(plant, "steps", 0))
+        out["simulated_s"] = _num(plant, "simulated time (s)")
+        out["wall_s"] = _num(plant, "wall time (s)")
+        out["steps_per_s"] = _num(plant, "steps per second")
+        gap = _num(plant, "air gap (m)")
+        out["air_gap_m"] = gap
+        out["peak_displacement"] = {
+            key[5:-4]: {"m": _num(plant, key), "air_gap_ratio": _num(plant, f"peak {key[5:-4]} / air gap")}
+            for key in plant
+            if key.startswith("peak ") and key.endswith(" (m)")
+        }
+    ctl = nodes.get("controller", {}).get("values", {})
+    if ctl:
+        keys = ("samples answered", "samples lost", "saturated samples", "max current (A)", "ticks",
+                "missed deadlines", "skipped ticks", "sensor losses")  # fmt: skip
+        stats = {k: _num(ctl, k) for k in keys if k in ctl}
+        stats.update({k: _num(ctl, k) for k in ctl if k.startswith(("compute ", "period error "))})
+        out["controller"] = stats
+    return out
+
+
+def format_summary(s: dict) -> str:
+    lines = []
+    head = f"amb-rig run: {s.get('mode')}, {s.get('motion')}, {s.get('duration_s')} s at {s.get('rate_hz'):g} Hz"
+    lines.append(f"{head}  [{'OK' if s['ok'] else 'FAILED'}]")
+    if "steps" in s:
+        lines.append(
+            f"  steps {s['steps']}   simulated {s.get('simulated_s') or 0:.6g} s   wall {s.get('wall_s') or 0:.3f} s"
+            f"   {s.get('steps_per_s') or 0:.0f} steps/s"
+        )
+    if s.get("peak_displacement"):
+        lines.append(f"  peak displacement (air gap {s.get('air_gap_m'):.3g} m):")
+        for ch, p in s["peak_displacement"].items():
+            flag = "  EXCEEDS AIR GAP" if (p["air_gap_ratio"] or 0) > 1 else ""
+            lines.append(f"    {ch:<8} {p['m']:.4g} m   {p['air_gap_ratio']:.4g} x gap{flag}")
+    if s.get("controller"):
+        c = s["controller"]
+        text = ", ".join(f"{k} {v:g}" for k, v in c.items() if v is not None)
+        lines.append(f"  controller: {text}")
+    lines.append("  nodes:")
+    for name, n in s["nodes"].items():
+        lines.append(f"    {name:<12} {n['level']:<5} {n['exit']:<22} {n['message']}")
+    for err in s["errors"]:
+        lines.append(f"  error: {err}")
+    if s.get("log_dir"):
+        lines.append(f"  logs: {s['log_dir']}")
+    return "\n".join(lines)

@@ -1,0 +1,243 @@
+"""amb_controller node: the digital PID per AMB axis (``amb_dynamics.amb.DiscretePID``) at rate_hz.
+
+Topics (layouts in docs/topics.md)
+----------------------------------
+subscribes /amb/displacement   sensor_msgs/JointState: name = channels, position = displacement (m)
+publishes  /amb/current        sensor_msgs/JointState: same names, effort = current (A); stamp = the stamp of
+                               the displacement sample it answers
+publishes  /diagnostics        samples answered, compute time, period jitter p50/p99/max and missed deadlines
+                               (realtime), saturation, lost/rejected samples, sensor state
+
+Lockstep: every displacement sample is answered once, in order (a gap in the stamps is counted as lost samples;
+a sample for t = 0 after others means the plant restarted: the PID is reset).  Realtime: a wall-clock ticker at
+rate_hz computes the current from the latest sample (sample-and-hold, as an ADC would); the period error of each
+tick and the deadlines missed (a tick more than half a period late, or skipped) are reported.  Safe behaviour:
+when no new sample has arrived for sensor_timeout_s, the controller outputs zero current (de-levitate onto the
+touchdown bearings rather than act on stale data), resets its PID and reports ERROR until samples return.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+from sensor_msgs.msg import JointState
+
+import amb_ros.messages as m
+from amb_dynamics.amb import DiscretePID, DiscretePIDCoefficients
+from amb_dynamics.errors import InputError
+from amb_dynamics.structure import AMBGains, channel_names
+from amb_ros.diagnostics import ERROR, OK, WARN, Timings
+from amb_ros.loop import Ticker, Waiter
+from amb_ros.node_base import RigNode
+from amb_ros.params import ParamSpec
+from amb_ros.qos import data_qos
+from amb_ros.runtime import run_node
+
+from .excitation import KINDS, Excitation
+
+
+def specs() -> list[ParamSpec]:
+    c = "controller."
+    return [
+        ParamSpec("proportional_gain", None, "kp", "A/m", 0.0, 1e12, config_key=c + "proportional_gain"),
+        ParamSpec("derivative_gain", None, "kd", "A s/m", 0.0, 1e12, config_key=c + "derivative_gain"),
+        ParamSpec("integral_gain", None, "kI", "A/(m s)", 0.0, 1e15, config_key=c + "integral_gain"),
+        ParamSpec("derivative_filter_hz", None, "derivative filter corner; 0 = backward difference", "Hz", 0.0, 1e9,
+                  config_key=c + "derivative_filter_hz", none_value=0.0),
+        ParamSpec("current_limit", None, "output saturation; the integrator is clamped to it", "A", 0.0, 1e12,
+                  config_key=c + "current_limit"),
+        ParamSpec("delay_samples", None, "one-sample computation delay (0 or 1)", "samples", 0, 1,
+                  config_key=c + "delay_samples"),
+        ParamSpec("sensor_timeout_s", 0.1, "no new sample for this long: zero current and ERROR (realtime)", "s",
+                  1e-4, 3600.0),
+        ParamSpec("excitation_kind", "none", "current injected for identification", choices=KINDS),
+        ParamSpec("excitation_amplitude", 0.0, "sine amplitude or noise standard deviation", "A", 0.0, 1e6),
+        ParamSpec("excitation_frequency_hz", 10.0, "sine frequency", "Hz", 0.0, 1e6),
+        ParamSpec("excitation_channels", [0, 1, 2, 3], "channel indices that receive the excitation"),
+        ParamSpec("excitation_seed", 0, "seed of the noise excitation", "", 0, 2**31 - 1),
+    ]  # fmt: skip
+
+
+class ControllerNode(RigNode):
+    def __init__(self, stop):
+        super().__init__("amb_controller", stop, specs())
+        p, cfg = self.p, self.cfg
+        self.channels = channel_names(cfg.bearings.nodes)
+        chans = list(p["excitation_channels"])
+        if any(c < 0 or c >= len(self.channels) for c in chans):
+            raise InputError(
+                f"parameter 'excitation_channels' = {chans}: indices must be in 0..{len(self.channels) - 1}"
+            )
+        coeffs = DiscretePIDCoefficients.from_gains(AMBGains.from_config(cfg), self.Ts)
+        self.pid = DiscretePID(coeffs, len(self.channels), p["current_limit"], cfg.controller.delay_samples)
+        self.excitation = Excitation(p["excitation_kind"], p["excitation_amplitude"], p["excitation_frequency_hz"],
+                                     chans, len(self.channels), p["excitation_seed"])  # fmt: skip
+        qos = data_qos(self.mode, p["qos_depth"])
+        self.pub = self.create_publisher(JointState, m.CURRENT, qos)
+        self.codec = m.joint_state_codec(self.channels, ("effort",))
+        self.decoder = m.joint_state_decoder(self.channels, ("position",))
+        self.sub = self.create_subscription(JointState, m.DISPLACEMENT, self.on_sample, qos, raw=True)
+        self.waiter = Waiter(self, [self.sub])
+        self.answered = self.saturated = self.lost = self.restarts = self.repeated = 0
+        self.sensor_losses = self.safe_ticks = self.nonfinite = 0
+        self.max_current = 0.0
+        self.last_k = -1
+        self.latest: tuple[int, np.ndarray] | None = None  # realtime: (stamp ns, y)
+        self.fresh = False
+        self.last_sample_wall = None
+        self.sensor_state = "waiting"
+        self.compute = Timings()
+        self.period_error = Timings()
+        self.missed = self.skipped = self.ticks = 0
+        self.t_wall0 = time.monotonic()
+
+    # -- receive ------------------------------------------------------------------------------------
+    def on_sample(self, raw: bytes) -> None:
+        self.counters.received[m.DISPLACEMENT] += 1
+        try:
+            t_ns, y = self.decoder(raw)
+        except m.Rejected as exc:
+            self.counters.reject(m.DISPLACEMENT, str(exc))
+            return
+        self.last_sample_wall = time.monotonic()
+        if self.sensor_state == "lost":
+            self.sensor_state = "ok"  # samples are back
+        if self.mode == "realtime":
+            self.latest, self.fresh = (t_ns, y.copy()), True
+            return
+        if t_ns % self.Ts_ns:
+            self.counters.reject(m.DISPLACEMENT, f"stamp {t_ns} ns is not on the {self.Ts_ns} ns sample grid")
+            return
+        k = t_ns // self.Ts_ns
+        if k == 0 and self.last_k >= 0:  # the plant restarted
+            self.restarts += 1
+            self.pid.reset()
+        elif k <= self.last_k:
+            self.counters.reject(m.DISPLACEMENT, f"sample for step {k} after step {self.last_k} (duplicate)")
+            return
+        elif k > self.last_k + 1:
+            self.lost += k - self.last_k - 1
+        self.last_k = k
+        self.sensor_state = "ok"
+        self.answer(t_ns, y, k * self.Ts)
+
+    def answer(self, t_ns: int, y: np.ndarray, t: float) -> None:
+        t0 = time.perf_counter()
+        with np.errstate(over="ignore", invalid="ignore"):
+            u = self.pid.step(y)
+        if self.excitation.active:
+            u = np.clip(u + self.excitation(t), -self.p["current_limit"], self.p["current_limit"])
+        if not np.isfinite(u).all():  # only with a limitless controller on a diverged plant: never publish it
+            self.nonfinite += 1
+            u = np.zeros_like(u)
+        self.pub.publish(self.codec.encode(t_ns, u))
+        self.compute.add(time.perf_counter() - t0)
+        self.answered += 1
+        self.saturated += bool(self.pid.saturated.any())
+        self.max_current = max(self.max_current, float(np.max(np.abs(u))))
+
+    def drain(self) -> None:
+        while (raw := Waiter.take(self.sub)) is not None:
+            self.on_sample(raw)
+
+    # -- loops ----------------------------------------------------------------------------------------
+    def run(self) -> int:
+        if self.mode == "lockstep":
+            while not self.stop.is_set:
+                self.waiter.wait(1.0)
+                self.drain()
+                self.housekeeping()
+        else:
+            self.run_realtime()
+        self.waiter.close()
+        self.diag.publish_final(*self.status(), self.values())
+        return 0
+
+    def run_realtime(self) -> None:
+        ticker = Ticker(self.Ts_ns)
+        half, timeout = self.Ts_ns // 2, self.p["sensor_timeout_s"]
+        zero = np.zeros(len(self.channels))
+        while not self.stop.is_set:
+            skipped = ticker.skipped
+            k, lateness, period = ticker.wait_next(self.waiter, self.drain, self.stop)
+            if self.stop.is_set:
+                return
+            self.ticks += 1
+            self.missed += (lateness > half) + (ticker.skipped - skipped)
+            self.skipped = ticker.skipped
+            if period is not None:
+                self.period_error.add(abs(period - self.Ts_ns) * 1e-9)
+            if self.latest is None:
+                pass  # nothing to answer yet
+            elif time.monotonic() - self.last_sample_wall > timeout:
+                if self.sensor_state != "lost":
+                    self.sensor_losses += 1
+                    self.pid.reset()
+                self.sensor_state = "lost"
+                self.safe_ticks += 1
+                self.pub.publish(self.codec.encode(self.get_clock().now().nanoseconds, zero))
+            else:
+                self.repeated += not self.fresh
+                self.fresh = False
+                self.answer(self.latest[0], self.latest[1], k * self.Ts)
+            if k % 16 == 0:
+                self.housekeeping()
+
+    def housekeeping(self) -> None:
+        self.waiter.serve()
+        if self.mode == "lockstep" and self.last_sample_wall is not None:
+            if time.monotonic() - self.last_sample_wall > self.p["sensor_timeout_s"] and self.sensor_state == "ok":
+                self.sensor_state = "paused"  # lockstep: the plant paused or finished; time does not run on
+        if self.diag.due():
+            self.diag.publish(*self.status(), self.values())
+
+    def status(self) -> tuple[bytes, str]:
+        if self.sensor_state == "lost":
+            return ERROR, (f"no sensor samples for more than {self.p['sensor_timeout_s']:g} s: "
+                           "zero current output, PID reset")  # fmt: skip
+        if self.nonfinite:
+            return ERROR, f"PID output not finite in {self.nonfinite} samples (zero current sent instead)"
+        notes = []
+        if self.sensor_losses:
+            notes.append(f"sensor samples stopped {self.sensor_losses} time(s) ({self.safe_ticks} ticks at zero)")
+        if self.lost:
+            notes.append(f"{self.lost} samples lost")
+        if self.missed:
+            notes.append(f"{self.missed} missed deadlines")
+        if self.saturated:
+            notes.append(f"saturated in {self.saturated} samples")
+        if self.counters.total_rejected:
+            notes.append(f"{self.counters.total_rejected} rejected messages ({self.counters.last_rejection})")
+        text = f"{self.sensor_state}: {self.answered} samples answered" + ("; " + "; ".join(notes) if notes else "")
+        return (WARN if notes else OK), text
+
+    def values(self) -> dict[str, str]:
+        out = self.common_values()
+        self.counters.published[m.CURRENT] = self.answered + self.safe_ticks
+        out.update(
+            {
+                "sensor state": self.sensor_state,
+                "samples answered": str(self.answered),
+                "samples lost": str(self.lost),
+                "restarts": str(self.restarts),
+                "saturated samples": str(self.saturated),
+                "max current (A)": f"{self.max_current:.6g}",
+                "current limit (A)": f"{self.p['current_limit']:.6g}",
+                "excitation": self.excitation.kind if self.excitation.active else "none",
+                "sensor losses": str(self.sensor_losses),
+                "zero-current ticks": str(self.safe_ticks),
+                "wall time (s)": f"{time.monotonic() - self.t_wall0:.3f}",
+            }
+        )
+        out.update(self.compute.summary("compute"))
+        if self.mode == "realtime":
+            out.update({"ticks": str(self.ticks), "missed deadlines": str(self.missed),
+                        "skipped ticks": str(self.skipped), "repeated samples": str(self.repeated)})  # fmt: skip
+            out.update(self.period_error.summary("period error"))
+        return out
+
+
+def main(args: list[str] | None = None) -> None:
+    sys.exit(run_node("amb_controller", ControllerNode, args))

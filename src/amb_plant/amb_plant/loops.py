@@ -1,0 +1,91 @@
+"""The plant's two time modes (see amb_plant.node): the lockstep clock-master loop and the realtime ticker."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+import amb_ros.messages as m
+from amb_ros.loop import Ticker
+from amb_ros.runtime import RunFailed
+
+HOUSEKEEPING_EVERY = 64  # steps between diagnostics/service checks in lockstep (cheap, but not free)
+
+
+def run_lockstep(node) -> None:
+    """Step k: publish /clock t_k, y_k, state; wait for base sample k and the command for t_k; advance."""
+    Ts_ns = node.Ts_ns
+    steps = round(node.p["duration_s"] / node.Ts) if node.p["duration_s"] > 0 else None
+    clock_codec, stepper = node.clock_codec, node.stepper
+    no_values = np.zeros(0)
+    k = 0
+    timeout = node.p["start_timeout_s"]  # the first answer may take longer (peers finish starting up)
+    while not node.stop.is_set:
+        t_ns = k * Ts_ns
+        node.k_now = k
+        t_sent = time.perf_counter()
+        node.publish_outputs(k, t_ns)  # the displacement first: it starts the controller (the critical path)
+        node.clock_pub.publish(clock_codec.encode(t_ns, no_values))
+        node.counters.published[m.CLOCK] += 1
+        if steps is not None and k >= steps:
+            node.finished = True
+            return
+        deadline = time.monotonic() + timeout
+        mats = None
+        while True:
+            node.drain()
+            if mats is None and k in node.imu and k in node.acc:
+                imu, acc = node.imu.pop(k), node.acc.pop(k)
+                mats = stepper.matrices(imu[4:7], acc)  # overlaps with the controller's computation
+            if mats is not None and k in node.commands:
+                break
+            if node.stop.is_set:
+                return
+            now = time.monotonic()
+            if now > deadline:
+                raise RunFailed(lockstep_timeout_message(node, k, mats is not None, timeout))
+            node.waiter.wait(deadline - now)
+        node.round_trip.add(time.perf_counter() - t_sent)
+        node.advance(mats, node.commands.pop(k))
+        timeout = node.p["command_timeout_s"]
+        k += 1
+        if k % HOUSEKEEPING_EVERY == 0:
+            node.waiter.serve()
+            if node.diag.due():
+                node.diag.publish(*node.status(), node.values())
+
+
+def lockstep_timeout_message(node, k: int, have_base: bool, timeout: float) -> str:
+    what = [] if have_base else [f"base sample ({m.IMU}, {m.ANGULAR_ACCELERATION})"]
+    if k not in node.commands:
+        what.append(f"command on {m.CURRENT} (controller gone?)")
+    return f"no {' or '.join(what)} for step {k} (t = {k * node.Ts:.6g} s) within {timeout:g} s"
+
+
+def run_realtime(node) -> None:
+    """Wall-clock ticks: advance with the latest command and base rates, then publish y."""
+    ticker = Ticker(node.Ts_ns)
+    end = time.monotonic() + node.p["duration_s"] if node.p["duration_s"] > 0 else None
+    half = node.Ts_ns // 2
+    while not node.stop.is_set:
+        skipped = ticker.skipped
+        k, lateness, period = ticker.wait_next(node.waiter, node.drain, node.stop)
+        if node.stop.is_set:
+            return
+        node.missed += (lateness > half) + (ticker.skipped - skipped)
+        node.skipped = ticker.skipped
+        if period is not None:
+            node.period_error.add(abs(period - node.Ts_ns) * 1e-9)
+        node.k_now = k
+        if k > 0:
+            om, dom = node.latest_rates
+            node.advance(node.stepper.matrices(om, dom), node.policy.current(k))
+        node.publish_outputs(k, node.get_clock().now().nanoseconds)
+        if end is not None and time.monotonic() >= end:
+            node.finished = True
+            return
+        if k % 16 == 0:
+            node.waiter.serve()
+            if node.diag.due():
+                node.diag.publish(*node.status(), node.values())

@@ -1,0 +1,312 @@
+"""amb_plant node: the flexible rotor on its AMBs, stepped with the core's exact sampled-data propagator.
+
+Topics (layouts in docs/topics.md)
+----------------------------------
+publishes  /clock (lockstep)            rosgraph_msgs/Clock, t_k = k Ts: the plant is the clock master
+publishes  /amb/displacement            sensor_msgs/JointState: name = channels, position = measured y (m)
+publishes  /amb_plant/state             sensor_msgs/JointState: name = generalised coordinates (modes when
+                                        modal_cutoff is set, FE DOFs n<i>_v... otherwise), position = q,
+                                        velocity = dq/dt
+publishes  /diagnostics                 steps, rates, peak displacement vs air gap, saturation, command
+                                        timeouts, counts published/received/rejected
+subscribes /amb/current                 sensor_msgs/JointState: effort = coil current (A), stamp = the sample
+subscribes /base/imu, /base/angular_acceleration   base rates Omega, dOmega held over each step
+
+Lockstep: at step k publish /clock, y_k and the state (stamp t_k), wait for the base sample k and the command
+stamped t_k, then x_{k+1} = E_k x_k + Gamma_k i_k + g_k (``PlantStepper``) - exactly ``SampledLoop.simulate``.
+The matrices of step k are computed while the controller works on y_k.  No command within command_timeout_s
+(controller gone): ERROR diagnostic, exit code 3.  Realtime: wall-clock ticks, latest command and base sample,
+sensor model and the command policy of :mod:`amb_plant.sensor`.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+from geometry_msgs.msg import Vector3Stamped
+from rclpy.duration import Duration
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu, JointState
+
+import amb_ros.messages as m
+from amb_dynamics.fe import dof_index
+from amb_dynamics.sampled import PlantStepper
+from amb_dynamics.structure import build_structure
+from amb_ros.diagnostics import ERROR, OK, WARN, Timings
+from amb_ros.loop import Waiter
+from amb_ros.node_base import RigNode
+from amb_ros.params import ParamSpec
+from amb_ros.qos import data_qos
+from amb_ros.runtime import RunFailed, run_node
+
+from .loops import run_lockstep, run_realtime
+from .sensor import CommandPolicy, SensorModel
+
+
+def specs() -> list[ParamSpec]:
+    return [
+        ParamSpec("duration_s", 0.0, "run length (simulated in lockstep, wall in realtime); 0 = until stopped", "s",
+                  0.0, 1e6),
+        ParamSpec("current_limit", None, "amplifier saturation", "A", 0.0, 1e12, config_key="controller.current_limit"),
+        ParamSpec("noise_std", 0.0, "sensor noise standard deviation", "m", 0.0, 1.0),
+        ParamSpec("quantization", 0.0, "sensor quantization step; 0 = none", "m", 0.0, 1.0),
+        ParamSpec("sensor_delay_samples", 0, "sensor delay", "samples", 0, 1000),
+        ParamSpec("noise_seed", 0, "seed of the sensor noise", "", 0, 2**31 - 1),
+        ParamSpec("command_timeout_s", 2.0, "lockstep: wall time to wait for a command before failing", "s",
+                  0.01, 3600.0),
+        ParamSpec("hold_samples", 10, "realtime: samples a stale command is held before zero current", "samples",
+                  0, 1000000),
+        ParamSpec("start_timeout_s", 30.0, "wall time to wait for controller and base motion to connect", "s",
+                  0.1, 3600.0),
+        ParamSpec("min_subscribers", 1, "readers of /amb/displacement required before starting", "", 1, 100),
+        ParamSpec("initial_displacement", 0.0, "initial lateral (v) displacement of the disk node", "m", -1.0, 1.0),
+        ParamSpec("max_displacement_ratio", 100.0, "stop the run when |y| exceeds this many air gaps (the linear "
+                  "model means nothing there)", "", 1.0, 1e12),
+        ParamSpec("state_every", 1, "publish /amb_plant/state every N steps", "steps", 1, 1000000),
+    ]  # fmt: skip
+
+
+class PlantNode(RigNode):
+    def __init__(self, stop):
+        super().__init__("amb_plant", stop, specs())
+        p, cfg = self.p, self.cfg
+        self.model = build_structure(cfg)
+        self.stepper = PlantStepper(self.model, cfg, self.Ts)
+        self.channels = self.model.channels
+        self.air_gap = cfg.bearings.air_gap
+        self.max_y = p["max_displacement_ratio"] * self.air_gap
+        self.limit = p["current_limit"]
+        self.sensor = SensorModel(p["noise_std"], p["quantization"], p["sensor_delay_samples"], p["noise_seed"])
+        self.policy = CommandPolicy(len(self.channels), p["hold_samples"])
+        self.x = self.initial_state(p["initial_displacement"])
+        self.steps = 0
+        self.peak = np.zeros(len(self.channels))
+        self.saturated = 0
+        self.max_current = 0.0
+        self.failure = ""
+        self.finished = False
+        self.round_trip = Timings()
+        self.period_error = Timings()
+        self.missed = 0
+        self.skipped = 0
+        self.t_wall0 = self.t_wall1 = None
+        self.connect_s = 0.0
+        qos = data_qos(self.mode, p["qos_depth"])
+        self.disp_pub = self.create_publisher(JointState, m.DISPLACEMENT, qos)
+        self.state_pub = self.create_publisher(JointState, m.STATE, qos)
+        self.clock_pub = self.create_publisher(Clock, m.CLOCK, qos) if self.mode == "lockstep" else None
+        self.disp_codec = m.joint_state_codec(self.channels, ("position",))
+        self.state_codec = m.joint_state_codec(self.model.dof_names, ("position", "velocity"))
+        self.clock_codec = m.clock_codec()
+        self.cmd_decoder = m.joint_state_decoder(self.channels, ("effort",))
+        self.imu_decoder, self.acc_decoder = m.imu_decoder(), m.vector3_decoder()
+        self.cmd_sub = self.create_subscription(JointState, m.CURRENT, self.on_command, qos, raw=True)
+        self.imu_sub = self.create_subscription(Imu, m.IMU, self.on_imu, qos, raw=True)
+        self.acc_sub = self.create_subscription(Vector3Stamped, m.ANGULAR_ACCELERATION, self.on_acc, qos, raw=True)
+        self.waiter = Waiter(self, [self.cmd_sub, self.imu_sub, self.acc_sub])
+        # received data: lockstep keeps samples by step index, realtime only the latest
+        self.commands: dict[int, np.ndarray] = {}
+        self.imu: dict[int, np.ndarray] = {}
+        self.acc: dict[int, np.ndarray] = {}
+        self.latest_rates = (np.zeros(3), np.zeros(3))
+        self.k_now = 0  # lockstep: the step being computed; realtime: the current tick
+
+    def initial_state(self, disk_v: float) -> np.ndarray:
+        n = self.model.n
+        x = np.zeros(2 * n)
+        if disk_v:
+            fe = self.model.fe
+            q_fe = np.zeros(fe.n)
+            disk_node = self.cfg.disks[0].node if self.cfg.disks else self.cfg.n_nodes
+            q_fe[dof_index(disk_node, 0)] = disk_v  # DOF 0 = v (lateral y)
+            x[:n] = self.model.from_fe(q_fe)
+        return x
+
+    # -- receive handlers (called from the loops and from executor callbacks) -------------------------
+    def _step_of(self, topic: str, t_ns: int) -> int | None:
+        if self.mode == "realtime":
+            return self.k_now
+        if t_ns % self.Ts_ns:
+            self.counters.reject(topic, f"stamp {t_ns} ns is not on the {self.Ts_ns} ns sample grid")
+            return None
+        return t_ns // self.Ts_ns
+
+    def _decode(self, topic: str, decoder, raw: bytes):
+        self.counters.received[topic] += 1
+        try:
+            t_ns, values = decoder(raw)
+        except m.Rejected as exc:
+            self.counters.reject(topic, str(exc))
+            return None, None
+        return self._step_of(topic, t_ns), values
+
+    def on_command(self, raw: bytes) -> None:
+        k, current = self._decode(m.CURRENT, self.cmd_decoder, raw)
+        if k is None:
+            return
+        if self.mode == "realtime":
+            self.policy.command(current.copy(), k)
+        elif k == self.k_now and not self.finished:
+            self.commands[k] = current.copy()
+        else:
+            self.counters.reject(m.CURRENT, f"command for step {k} while at step {self.k_now}")
+
+    def _on_base(self, topic: str, decoder, raw: bytes, store: dict) -> None:
+        k, values = self._decode(topic, decoder, raw)
+        if k is None:
+            return
+        if self.mode == "realtime":
+            om, dom = self.latest_rates
+            self.latest_rates = (values[4:7].copy(), dom) if topic == m.IMU else (om, values.copy())
+        elif k >= self.k_now:
+            store[k] = values.copy()
+        else:
+            self.counters.reject(topic, f"sample for step {k} arrived after step {self.k_now} began")
+
+    def on_imu(self, raw: bytes) -> None:
+        self._on_base(m.IMU, self.imu_decoder, raw, self.imu)
+
+    def on_acc(self, raw: bytes) -> None:
+        self._on_base(m.ANGULAR_ACCELERATION, self.acc_decoder, raw, self.acc)
+
+    def drain(self) -> None:
+        for sub, handler in ((self.cmd_sub, self.on_command), (self.imu_sub, self.on_imu), (self.acc_sub, self.on_acc)):
+            while (raw := Waiter.take(sub)) is not None:
+                handler(raw)
+
+    # -- physics glue ----------------------------------------------------------------------------------
+    def publish_outputs(self, k: int, stamp_ns: int) -> None:
+        y = self.stepper.output(self.x)
+        np.maximum(self.peak, np.abs(y), out=self.peak)
+        if self.peak.max() > self.max_y:
+            j = int(np.argmax(self.peak))
+            raise RunFailed(
+                f"rotor left the bearing: |{self.channels[j]}| = {self.peak[j]:.3g} m = "
+                f"{self.peak[j] / self.air_gap:.3g} x air gap at t = {k * self.Ts:.6g} s (max_displacement_ratio)"
+            )
+        self.disp_pub.publish(self.disp_codec.encode(stamp_ns, self.sensor.measure(y)))
+        if k % self.p["state_every"] == 0:
+            self.state_pub.publish(self.state_codec.encode(stamp_ns, self.x))
+            self.counters.published[m.STATE] += 1
+        self.counters.published[m.DISPLACEMENT] += 1
+
+    def amplifier(self, current: np.ndarray) -> np.ndarray:
+        peak = float(np.max(np.abs(current)))
+        self.max_current = max(self.max_current, peak)
+        if peak > self.limit:
+            self.saturated += 1
+            return np.clip(current, -self.limit, self.limit)
+        return current
+
+    def advance(self, mats, current: np.ndarray) -> None:
+        E, G, g = mats
+        self.x = E @ self.x + G @ self.amplifier(current) + g
+        self.steps += 1
+        if not np.isfinite(self.x).all():
+            raise RunFailed(f"plant state is no longer finite at step {self.steps} (t = {self.steps * self.Ts:.6g} s)")
+
+    def wait_connected(self) -> None:
+        """Bounded wait until controller and base motion (and min_subscribers readers) are matched."""
+        t0 = time.monotonic()
+        deadline = t0 + self.p["start_timeout_s"]
+        while not self.stop.is_set:
+            missing = self.missing_peers()
+            if not missing:
+                self.connect_s = time.monotonic() - t0
+                return
+            if time.monotonic() > deadline:
+                raise RunFailed(f"no {', '.join(missing)} after {self.p['start_timeout_s']:g} s (start timeout)")
+            if self.diag.due():
+                self.diag.publish(WARN, f"waiting for {', '.join(missing)}", self.values())
+            self.waiter.serve(force=True)
+            time.sleep(0.02)
+
+    def missing_peers(self) -> list[str]:
+        missing = []
+        if self.disp_pub.get_subscription_count() < self.p["min_subscribers"]:
+            missing.append(f"{self.p['min_subscribers']} reader(s) of {m.DISPLACEMENT}")
+        for sub in (self.cmd_sub, self.imu_sub, self.acc_sub):
+            if self.count_publishers(sub.topic_name) < 1:
+                missing.append(f"publisher of {sub.topic_name}")
+        if self.clock_pub is not None and self.clock_pub.get_subscription_count() < 1:
+            missing.append(f"reader of {m.CLOCK} (base_motion)")
+        return missing
+
+    # -- run and report ---------------------------------------------------------------------------------
+    def run(self) -> int:
+        code = 0
+        try:
+            self.wait_connected()
+            if not self.stop.is_set:
+                self.t_wall0 = time.monotonic()
+                (run_lockstep if self.mode == "lockstep" else run_realtime)(self)
+        except RunFailed as exc:
+            self.failure, code = str(exc), 3
+        self.t_wall1 = time.monotonic()
+        for pub in (self.disp_pub, self.state_pub, self.clock_pub):  # slow readers (recorder) get the last samples
+            if pub is not None:
+                pub.wait_for_all_acked(Duration(seconds=2.0))
+        self.waiter.close()
+        level, message = self.status()
+        self.diag.publish_final(level, message, self.values())
+        if code:
+            print(f"amb_plant: {self.failure}", file=sys.stderr)
+        return code
+
+    def status(self) -> tuple[bytes, str]:
+        ratio = float(self.peak.max()) / self.air_gap
+        if self.failure:
+            return ERROR, self.failure
+        if self.policy.zeroed:
+            return ERROR, (f"commands stopped {self.policy.losses} time(s): held {self.p['hold_samples']} samples, "
+                           f"then zero current for {self.policy.zeroed} samples")  # fmt: skip
+        notes = []
+        if self.policy.held:
+            notes.append(f"stale command held for {self.policy.held} samples")
+        if ratio > 1.0:
+            notes.append(f"peak displacement {ratio:.3g} x air gap (linear model beyond the gap)")
+        if self.saturated:
+            notes.append(f"current saturated in {self.saturated} steps")
+        if self.counters.total_rejected:
+            notes.append(f"{self.counters.total_rejected} rejected messages ({self.counters.last_rejection})")
+        state = "finished" if self.finished else "running"
+        text = f"{state}: {self.steps} steps" + ("; " + "; ".join(notes) if notes else "")
+        return (WARN if notes else OK), text
+
+    def values(self) -> dict[str, str]:
+        wall = (self.t_wall1 or time.monotonic()) - self.t_wall0 if self.t_wall0 else 0.0
+        out = self.common_values()
+        out.update(
+            {
+                "state": "failed" if self.failure else ("finished" if self.finished else "running"),
+                "steps": str(self.steps),
+                "simulated time (s)": f"{self.steps * self.Ts:.9g}",
+                "wall time (s)": f"{wall:.4f}",
+                "steps per second": f"{self.steps / wall:.1f}" if wall > 0 else "0",
+                "connect time (s)": f"{self.connect_s:.3f}",
+                "generalised coordinates": str(self.model.n),
+                "air gap (m)": f"{self.air_gap:.6g}",
+                "current limit (A)": f"{self.limit:.6g}",
+                "saturated steps": str(self.saturated),
+                "max command (A)": f"{self.max_current:.6g}",
+                "failure": self.failure,
+            }
+        )
+        for name, peak in zip(self.channels, self.peak, strict=True):
+            out[f"peak {name} (m)"] = f"{peak:.6g}"
+            out[f"peak {name} / air gap"] = f"{peak / self.air_gap:.6g}"
+        if self.mode == "lockstep":
+            out.update(self.round_trip.summary("command wait"))
+        else:
+            pol = self.policy
+            out.update({"commands held (samples)": str(pol.held), "zero current (samples)": str(pol.zeroed),
+                        "command losses": str(pol.losses), "command state": pol.state,
+                        "missed deadlines": str(self.missed), "skipped ticks": str(self.skipped)})  # fmt: skip
+            out.update(self.period_error.summary("period error"))
+        return out
+
+
+def main(args: list[str] | None = None) -> None:
+    sys.exit(run_node("amb_plant", PlantNode, args))

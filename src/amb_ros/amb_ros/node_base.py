@@ -1,0 +1,62 @@
+"""Common skeleton of the rig's nodes: parameters, mode, time step, diagnostics, message accounting.
+
+Time base: the sample period is a whole number of nanoseconds, ``Ts_ns = round(1e9 / rate_hz)``, and every node
+uses ``Ts = Ts_ns / 1e9`` and stamps ``t_k = k Ts_ns`` (exact integers), so that the plant, the controller, the
+base motion and the offline simulation all agree on t_k bit for bit.
+"""
+
+from __future__ import annotations
+
+from rclpy.node import Node
+
+from .diagnostics import Counters, Diagnostics
+from .params import NodeParams, ParamSpec
+
+MODES = ("lockstep", "realtime")
+
+
+def sample_period_ns(rate_hz: float) -> int:
+    """Sample period in whole ns for ``rate_hz``."""
+    return max(1, round(1e9 / rate_hz))
+
+
+def common_specs() -> list[ParamSpec]:
+    return [
+        ParamSpec("mode", "lockstep", "time mode: lockstep (plant is /clock master) or realtime", choices=MODES),
+        ParamSpec(
+            "rate_hz",
+            None,
+            "sample rate of the loop",
+            "Hz",
+            lo=1.0,
+            hi=1.0e6,
+            config_key="controller.rate_hz",
+        ),
+        ParamSpec("qos_depth", 1000, "history depth of the reliable lockstep topics", "samples", lo=1, hi=100000),
+        ParamSpec("diagnostics_period_s", 0.5, "wall time between /diagnostics messages", "s", lo=0.01, hi=60.0),
+    ]
+
+
+class RigNode(Node):
+    """A node of the rig; subclasses declare their own ``specs()`` and implement ``run()`` -> exit code."""
+
+    def __init__(self, name: str, stop, specs: list[ParamSpec]):
+        super().__init__(name)
+        self.stop = stop
+        self.params = NodeParams(self)
+        self.p = self.params.declare(common_specs() + specs)
+        self.params.check_unknown()
+        self.cfg = self.params.config
+        self.mode = self.p["mode"]
+        self.Ts_ns = sample_period_ns(self.p["rate_hz"])
+        self.Ts = self.Ts_ns / 1e9
+        self.counters = Counters()
+        self.diag = Diagnostics(self, self.p["diagnostics_period_s"])
+
+    def common_values(self) -> dict[str, str]:
+        return {
+            "mode": self.mode,
+            "rate (Hz)": f"{1e9 / self.Ts_ns:.6g}",
+            "sample period (ns)": str(self.Ts_ns),
+            **self.counters.values(),
+        }

@@ -1,0 +1,49 @@
+"""QoS profiles of the rig, each with its reason (DESIGN.md section 5).
+
+- Lockstep data (/clock, /base/*, /amb/*, /amb_plant/state): RELIABLE so that no sample is lost, KEEP_LAST with a
+  depth that covers a slow reader's lag (a recorder or monitor; plant and controller alternate, so they need 1),
+  TRANSIENT_LOCAL so that a reader that matches a little late (discovery is asymmetric) still gets the first
+  samples instead of the lockstep loop waiting forever for an answer that was published before the match.
+- Realtime data: sensor-data QoS (best effort, shallow): a rig uses the latest sample, a late one is useless.
+- /diagnostics: reliable and volatile, like diagnostic_updater.
+"""
+
+from __future__ import annotations
+
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+
+LOCKSTEP_DEPTH = 1000  # samples a slow reader may lag behind before KEEP_LAST drops the oldest for it
+DIAGNOSTICS_DEPTH = 100
+
+
+def lockstep_qos(depth: int = LOCKSTEP_DEPTH) -> QoSProfile:
+    return QoSProfile(
+        depth=depth,
+        history=HistoryPolicy.KEEP_LAST,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+
+
+def realtime_qos() -> QoSProfile:
+    return qos_profile_sensor_data
+
+
+def data_qos(mode: str, depth: int = LOCKSTEP_DEPTH) -> QoSProfile:
+    """QoS of the data topics for ``mode`` (lockstep or realtime)."""
+    return lockstep_qos(depth) if mode == "lockstep" else realtime_qos()
+
+
+def diagnostics_qos() -> QoSProfile:
+    return QoSProfile(
+        depth=DIAGNOSTICS_DEPTH,
+        history=HistoryPolicy.KEEP_LAST,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.VOLATILE,
+    )

@@ -1,0 +1,181 @@
+"""base_motion node: publishes the moving base's attitude, angular velocity and angular acceleration.
+
+Topics (layouts in docs/topics.md)
+----------------------------------
+publishes  /base/imu                    sensor_msgs/Imu: orientation = base->inertial quaternion (x, y, z, w),
+                                        angular_velocity = Omega in base axes (rad/s); stamp = t_k
+publishes  /base/angular_acceleration   geometry_msgs/Vector3Stamped: dOmega/dt in base axes (rad/s^2)
+publishes  /diagnostics                 samples published, clock messages received/rejected, lead
+subscribes /clock (lockstep)            rosgraph_msgs/Clock from the plant
+
+Lockstep: the plant publishes /clock = t_k at step k; this node answers with the samples up to k + lead_samples
+(it does not depend on the plant, so it runs ahead by a bounded credit window and is off the plant's critical
+path; lead_samples = 0 is strict request/response).  A /clock that goes backwards restarts the sequence there.
+Realtime: samples on a wall-clock ticker at rate_hz, t measured from the node's start, stamped with wall time.
+
+Profiles: none, roll, pitch, yaw (beta = A sin(w t)), combined (harmonics of the config's base_motion),
+recorded (CSV file, see amb_dynamics.recorded).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+from geometry_msgs.msg import Vector3Stamped
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu
+
+import amb_ros.messages as m
+from amb_dynamics.errors import InputError
+from amb_dynamics.motion import BaseMotion
+from amb_dynamics.recorded import load_recorded
+from amb_ros.diagnostics import OK, WARN
+from amb_ros.loop import Ticker, Waiter
+from amb_ros.node_base import RigNode
+from amb_ros.params import ParamSpec
+from amb_ros.qos import data_qos
+from amb_ros.runtime import run_node
+
+from .samples import SampleSource
+
+KINDS = ("none", "roll", "pitch", "yaw", "combined", "recorded")
+
+
+def specs() -> list[ParamSpec]:
+    return [
+        ParamSpec("kind", "", "base motion profile; empty = the config's base_motion.kind", choices=("", *KINDS)),
+        ParamSpec("amplitude", None, "amplitude A of beta = A sin(w t)", "rad", 0.0, 1.5,
+                  config_key="base_motion.amplitude"),
+        ParamSpec("frequency", None, "angular frequency w", "rad/s", 0.0, 1.0e4, config_key="base_motion.frequency"),
+        ParamSpec("recorded_file", "", "CSV with columns t, roll, pitch, yaw (kind recorded)"),
+        ParamSpec("recorded_smoothing", 0.0, "smoothing-spline lambda for recorded; 0 = automatic (GCV)", lo=0.0),
+        ParamSpec("lead_samples", 200, "lockstep: samples published ahead of the plant's /clock", "samples", 0, 10000),
+        ParamSpec("batch_wait_s", 0.002, "lockstep: pause before answering /clock, so that one wake-up answers many "
+                  "steps (off the plant's critical path while lead_samples covers it)", "s", 0.0, 1.0),
+    ]  # fmt: skip
+
+
+class BaseMotionNode(RigNode):
+    def __init__(self, stop):
+        super().__init__("base_motion", stop, specs())
+        p = self.p
+        kind = p["kind"] or self.cfg.base_motion.kind
+        if kind == "recorded":
+            if not p["recorded_file"]:
+                raise InputError("parameter 'recorded_file' is required for kind recorded")
+            self.motion = load_recorded(p["recorded_file"], p["recorded_smoothing"] or None)
+        else:  # amplitude and frequency are already folded into the config; the core validates the profile
+            self.cfg = self.params.override(f"base_motion.kind={kind}")
+            self.motion = BaseMotion.from_config(self.cfg.base_motion)
+        if p["lead_samples"] * 2 >= p["qos_depth"]:
+            raise InputError(f"lead_samples {p['lead_samples']} must be below half of qos_depth {p['qos_depth']}")
+        self.kind = kind
+        self.source = SampleSource(self.motion, self.Ts)
+        qos = data_qos(self.mode, p["qos_depth"])
+        self.imu_pub = self.create_publisher(Imu, m.IMU, qos)
+        self.acc_pub = self.create_publisher(Vector3Stamped, m.ANGULAR_ACCELERATION, qos)
+        self.imu_codec, self.acc_codec = m.imu_codec(), m.vector3_codec()
+        self.clock_decoder = m.clock_decoder()
+        subs = []
+        if self.mode == "lockstep":
+            self.clock_sub = self.create_subscription(Clock, m.CLOCK, self.on_clock, qos, raw=True)
+            subs.append(self.clock_sub)
+        self.waiter = Waiter(self, subs)
+        self.next_k = 0  # next sample to publish
+        self.clock_k = -1  # latest /clock step seen
+        self.restarts = 0
+        self.published = 0
+        self.wall_start = None
+
+    # -- publishing --------------------------------------------------------------------------------
+    def publish_sample(self, k: int, stamp_ns: int) -> None:
+        q, om, dom = self.source.sample(k)
+        self.imu_pub.publish(self.imu_codec.encode(stamp_ns, np.concatenate([q, om])))
+        self.acc_pub.publish(self.acc_codec.encode(stamp_ns, dom))
+        self.published += 1
+
+    def on_clock(self, raw: bytes) -> None:
+        self.counters.received[m.CLOCK] += 1
+        try:
+            t_ns, _ = self.clock_decoder(raw)
+        except m.Rejected as exc:
+            self.counters.reject(m.CLOCK, str(exc))
+            return
+        if t_ns % self.Ts_ns:
+            self.counters.reject(m.CLOCK, f"t = {t_ns} ns is not on the {self.Ts_ns} ns sample grid")
+            return
+        k = t_ns // self.Ts_ns
+        if k < self.clock_k:  # the plant restarted: follow it
+            self.restarts += 1
+            self.next_k = k
+        self.clock_k = k
+
+    def answer_clock(self) -> None:
+        while self.next_k <= self.clock_k + self.p["lead_samples"]:
+            self.publish_sample(self.next_k, self.next_k * self.Ts_ns)
+            self.next_k += 1
+
+    # -- loops -------------------------------------------------------------------------------------
+    def run(self) -> int:
+        self.wall_start = time.monotonic()
+        if self.mode == "lockstep":
+            while not self.stop.is_set:
+                self.waiter.wait(1.0)
+                if self.next_k > self.clock_k + self.p["lead_samples"] // 2 and self.p["batch_wait_s"] > 0:
+                    time.sleep(self.p["batch_wait_s"])  # still half a window ahead: let /clock messages gather
+                while (raw := Waiter.take(self.clock_sub)) is not None:
+                    self.on_clock(raw)
+                if self.clock_k >= 0:
+                    self.answer_clock()
+                self.housekeeping()
+        else:
+            ticker = Ticker(self.Ts_ns)
+            while not self.stop.is_set:
+                k, _, _ = ticker.wait_next(self.waiter, lambda: None, self.stop)
+                if self.stop.is_set:
+                    break
+                self.publish_sample(k, self.get_clock().now().nanoseconds)
+                self.housekeeping()
+            self.skipped = ticker.skipped
+        self.waiter.close()
+        level, message = self.status()
+        self.diag.publish_final(level, message, self.values())
+        return 0
+
+    def housekeeping(self) -> None:
+        self.waiter.serve()
+        if self.diag.due():
+            self.diag.publish(*self.status(), self.values())
+
+    def status(self) -> tuple[bytes, str]:
+        t = self.next_k * self.Ts
+        duration = getattr(self.motion, "duration", None)
+        if duration is not None and t > duration:
+            return WARN, f"recording ended at t = {duration:.6g} s: base held at rest"
+        if self.counters.total_rejected:
+            return WARN, f"{self.counters.total_rejected} rejected messages ({self.counters.last_rejection})"
+        return OK, f"{self.kind}: {self.published} samples published"
+
+    def values(self) -> dict[str, str]:
+        m_ = self.motion
+        out = self.common_values()
+        out.update(
+            {
+                "kind": self.kind,
+                "harmonics": "; ".join(f"{h.axis} A={h.amplitude:g} rad w={h.frequency:g} rad/s" for h in m_.harmonics),
+                "samples published": str(self.published),
+                "last sample t (s)": f"{(self.next_k - 1) * self.Ts:.9g}",
+                "clock step": str(self.clock_k),
+                "lead (samples)": str(self.p["lead_samples"]),
+                "restarts": str(self.restarts),
+                "wall time (s)": f"{time.monotonic() - self.wall_start:.3f}" if self.wall_start else "0",
+            }
+        )
+        self.counters.published[m.IMU] = self.counters.published[m.ANGULAR_ACCELERATION] = self.published
+        return out
+
+
+def main(args: list[str] | None = None) -> None:
+    sys.exit(run_node("base_motion", BaseMotionNode, args))
