@@ -1,0 +1,113 @@
+"""The stability monitor over DDS, beside a lockstep ``amb-rig`` run (separate processes, localhost only).
+
+The monitor runs with its defaults (base period found from /base/imu, noise level estimated) and is started
+before the rig.  The current limit and the plant's displacement stop are lifted so that the loop stays the linear
+one whose multipliers are the truth.
+
+- unstable: pitch 0.6 rad, T = pi/omega = 718 Ts (rho = 1.0617), sensor-only input (/amb/displacement, which
+  the plant counts: min_subscribers = 2 makes it wait for the monitor, so the monitor sees the first sample):
+  /stability/unstable must become True within DETECT_PERIODS periods of simulated time (offline, the same
+  deterministic run flags at 5.1 periods), and the final estimate must equal the sampled-data model rho;
+- stable: pitch 0.3 rad, T = 641 Ts (rho = 0.99879), full-state input (/amb_plant/state): the flag stays False
+  for the whole run.  (The plant does not wait for /amb_plant/state readers, so the monitor may join late here;
+  that only delays its first estimate.)
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from procs import spawn
+
+pytestmark = pytest.mark.ros
+
+DETECT_PERIODS = 8  # documented detection latency (periods T of A(t))
+TS = 2e-4  # the seed config's 5 kHz loop
+LINEAR = ["--set", "controller.current_limit=1e9", "--param", "plant:max_displacement_ratio=1e9"]
+
+
+@pytest.fixture
+def listener():
+    """An in-process rclpy node recording /stability/unstable and the monitor's /diagnostics."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import Bool
+
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node("monitor_test_listener", context=ctx)
+    latched = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)  # fmt: skip
+    rec = {"flags": [], "diag": []}
+    node.create_subscription(Bool, "/stability/unstable", lambda m: rec["flags"].append(m.data), latched)
+
+    def on_diag(msg):
+        for s in msg.status:
+            if s.name == "stability_monitor":
+                rec["diag"].append({kv.key: kv.value for kv in s.values} | {"_level": s.level, "_msg": s.message})
+
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, QoSProfile(depth=100))
+    executor = rclpy.executors.SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+
+    def spin_until(pred, timeout):
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and not pred():
+            executor.spin_once(timeout_sec=0.05)
+        return pred()
+
+    rec["spin_until"] = spin_until
+    try:
+        yield rec
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+
+
+def run_case(listener, venv_bin, tmp_path, amplitude, N, periods, sensor_only):
+    T = N * TS
+    omega = np.pi / T
+    monitor_cmd = [str(venv_bin / "amb-monitor"), "--ros-args", "-p", "diagnostics_period_s:=0.2"]
+    rig_cmd = [str(venv_bin / "amb-rig"), "run", "--duration", repr(periods * T), "--motion", "pitch",
+               "--amplitude", repr(amplitude), "--frequency", repr(omega), "--log-dir", str(tmp_path / "rig"),
+               *LINEAR]  # fmt: skip
+    if sensor_only:
+        monitor_cmd += ["-p", "input:=displacement"]
+        rig_cmd += ["--param", "plant:min_subscribers=2"]
+    with spawn(monitor_cmd, tmp_path / "monitor.log") as mon:
+        assert listener["spin_until"](lambda: listener["diag"] and listener["flags"], 30), mon.text()
+        with spawn(rig_cmd, tmp_path / "rig.log") as rig:
+            rc = rig.wait(timeout=240)
+            assert rc == 0, rig.text()[-2000:]
+        end = periods * T
+
+        def caught_up():  # the monitor has refitted on the last samples of the run
+            d = listener["diag"][-1]
+            return float(d.get("estimate time (s)", -1.0)) >= end - T / 4
+
+        assert listener["spin_until"](caught_up, 60), (listener["diag"][-1], mon.text()[-2000:])
+        rc = mon.stop()
+        assert rc == 0, mon.text()[-2000:]
+    listener["spin_until"](lambda: listener["diag"][-1].get("final") == "true", 5)
+    return listener["diag"][-1], T
+
+
+def test_unstable_run_raises_the_flag(listener, venv_bin, tmp_path):
+    diag, T = run_case(listener, venv_bin, tmp_path, 0.6, 718, 13, sensor_only=True)
+    assert listener["flags"][0] is False and True in listener["flags"]
+    assert float(diag["flag raised at (s)"]) <= DETECT_PERIODS * T
+    assert float(diag["period (s)"]) == pytest.approx(T, rel=1e-12)  # found from /base/imu, snapped to 718 Ts
+    assert float(diag["rho"]) == pytest.approx(1.0617233551, abs=1e-6)  # the sampled-data model value
+    assert diag["verdict"] == "unstable" and diag["samples lost"] == "0" and diag["samples"] == str(13 * 718 + 1)
+
+
+def test_stable_run_never_raises_the_flag(listener, venv_bin, tmp_path):
+    diag, _ = run_case(listener, venv_bin, tmp_path, 0.3, 641, 12, sensor_only=False)
+    assert listener["flags"] and not any(listener["flags"])
+    assert diag["verdict"] in ("stable", "marginal") and diag["unstable"] == "false"
+    assert float(diag["rho"]) == pytest.approx(0.9987913219, abs=0.01)
