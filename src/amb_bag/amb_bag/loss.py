@@ -9,7 +9,8 @@ integer number of messages published on that topic so far.  The recorder keeps t
 
 ``extra`` counts messages received after the last report (or from publishers that do not report).  A topic
 that nobody reports has ``published = None`` and unknown loss.  Counts published before the recorder subscribed
-are counted as lost: start the recorder first.
+are counted as lost: start the recorder first.  The recorder's own /diagnostics reports are recorded but left
+out of the /diagnostics row.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
 KEY_PREFIX = "published "
 CUSTOM_KEY = "amb_bag.loss"
 CUSTOM_TOTAL_KEY = "amb_bag.lost_total"
+RECORDER_NAME = "amb_bag_recorder"  # the recorder's node name and the name of its /diagnostics status
 
 
 def _topic(name: str) -> str:
@@ -35,16 +37,20 @@ class LossTracker:
         self.reported: dict[tuple[str, str], int] = {}
         self.reports = 0
 
-    def update_from_cdr(self, data: bytes) -> None:
-        """Parse one serialized DiagnosticArray (bad messages are ignored: they are recorded anyway)."""
+    def update_from_cdr(self, data: bytes, own_name: str | None = None) -> bool:
+        """Parse one serialized DiagnosticArray (bad messages are ignored: they are recorded anyway).
+
+        Returns True if every status in it is named ``own_name`` (the recorder's own report).
+        """
         from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.serialization import deserialize_message
 
         try:
             msg = deserialize_message(data, DiagnosticArray)
         except Exception:  # rclpy raises plain RuntimeError-like errors for undecodable CDR
-            return
+            return False
         self.update((s.name, ((kv.key, kv.value) for kv in s.values)) for s in msg.status)
+        return bool(msg.status) and all(s.name == own_name for s in msg.status)
 
     def update(self, statuses) -> None:
         """``statuses``: iterable of (status name, iterable of (key, value)) pairs."""

@@ -19,12 +19,14 @@
   metadata.yaml, prints the loss table, and exits 0.
 
 Its stdout lines ``amb-bag record: subscribed <topic> [<type>]`` tell a supervisor (``amb-rig``) when a topic
-is being recorded.
+is being recorded.  Node ``amb_bag_recorder`` reports on /diagnostics every second (received counts, total lost)
+and once more, ``final``, after the bag is closed.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import re
 import signal
 import sys
@@ -34,13 +36,15 @@ from pathlib import Path
 
 from . import msgdefs
 from .errors import BagError
-from .loss import DIAGNOSTICS_TOPIC, LossTracker, custom_data, format_table
+from .loss import DIAGNOSTICS_TOPIC, RECORDER_NAME, LossTracker, custom_data, format_table
 from .qos import profile_to_dict, request_for_offers
 from .writer import DEFAULT_CHUNK_SIZE, BagWriter
 
 DRAIN_BATCH = 2000  # messages taken from one subscription before the others get a turn
 WAIT_MAX_S = 0.05  # longest wait, so that signals, discovery and checkpoints are served promptly
 PREFIX = "amb-bag record:"
+NODE_NAME = RECORDER_NAME
+DIAGNOSTICS_PERIOD_S = 1.0
 
 
 @dataclass
@@ -70,12 +74,14 @@ def _hidden(topic: str) -> bool:
 class Recorder:
     """Subscriptions, the drain loop and the writer of one recording (needs an initialised rclpy context)."""
 
-    def __init__(self, node, opts: RecordOptions, writer: BagWriter, log=print):
+    def __init__(self, node, opts: RecordOptions, writer: BagWriter, log=print, diagnostics=None):
         from rclpy.impl.implementation_singleton import rclpy_implementation
 
         self._rclpy = rclpy_implementation
         self.node, self.opts, self.writer, self.log = node, opts, writer, log
+        self.diagnostics = diagnostics  # amb_ros.diagnostics.Diagnostics or None
         self.loss = LossTracker()
+        self.own_reports = 0  # this recorder's /diagnostics messages that it recorded
         self.subs: list[_Sub] = []
         self.by_topic: dict[str, _Sub] = {}
         self.ignored: set[str] = set()
@@ -169,8 +175,8 @@ class Recorder:
             data, info = taken
             recv = info["received_timestamp"] or time.time_ns()
             write(tid, recv, data, info["source_timestamp"] or recv, info["publication_sequence_number"] & 0xFFFFFFFF)
-            if sub.is_diagnostics:
-                self.loss.update_from_cdr(data)
+            if sub.is_diagnostics and self.loss.update_from_cdr(data, NODE_NAME):
+                self.own_reports += 1
             n += 1
             if delay:
                 time.sleep(delay)
@@ -194,8 +200,15 @@ class Recorder:
     def received(self) -> dict[str, int]:
         return {t.name: t.message_count for t in self.writer.topics}
 
+    def received_from_others(self) -> dict[str, int]:
+        """Received counts for the loss table: without the recorder's own /diagnostics reports."""
+        counts = self.received()
+        if DIAGNOSTICS_TOPIC in counts:
+            counts[DIAGNOSTICS_TOPIC] -= self.own_reports
+        return counts
+
     def write_progress(self) -> None:
-        self.writer.write_progress({"received": self.received(), "published": self.loss.published(),
+        self.writer.write_progress({"received": self.received_from_others(), "published": self.loss.published(),
                                     "time_ns": time.time_ns()})  # fmt: skip
 
     def spin(self) -> None:
@@ -213,6 +226,8 @@ class Recorder:
             if now >= next_progress:
                 self.write_progress()
                 next_progress = now + self.opts.progress_interval_s
+            if self.diagnostics is not None and self.diagnostics.due():
+                self.publish_status()
             timeout = min(WAIT_MAX_S, next_scan - now, next_flush - now, next_progress - now, end - now)
             self._wait_and_drain(max(0.0, timeout))
             now = time.monotonic()
@@ -220,9 +235,26 @@ class Recorder:
         while self._wait_and_drain(0.02):
             pass
 
+    def status(self, rows: dict | None = None) -> tuple[int, str, dict]:
+        """(level, message, values) of the recorder's /diagnostics status; levels as diagnostic_msgs (0 OK, 1 WARN)."""
+        rows = self.loss.table(self.received_from_others()) if rows is None else rows
+        lost = sum(r["lost"] or 0 for t, r in rows.items() if self.wanted(t))
+        values = {f"received {t}": str(n) for t, n in sorted(self.received().items())}
+        values.update({"messages written": str(self.writer.message_count), "lost total": str(lost),
+                       "bag": str(self.opts.output)})  # fmt: skip
+        message = f"{self.writer.message_count} messages on {len(self.writer.topics)} topics, lost {lost}"
+        return (1 if lost else 0), message, values
+
+    def publish_status(self, rows: dict | None = None, final: bool = False) -> None:
+        level, message, values = self.status(rows)
+        if final:
+            self.diagnostics.publish_final(bytes([level]), message, values)
+        else:
+            self.diagnostics.publish(bytes([level]), message, values)
+
     def finish(self) -> dict:
         """Close the bag with the loss table in custom_data; returns the loss rows."""
-        rows = {t: r for t, r in self.loss.table(self.received()).items() if self.wanted(t)}
+        rows = {t: r for t, r in self.loss.table(self.received_from_others()).items() if self.wanted(t)}
         self.writer.close(custom_data(rows))
         return rows
 
@@ -301,19 +333,26 @@ def record(opts: RecordOptions) -> dict:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
+    from amb_ros.diagnostics import Diagnostics
+
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node("amb_bag_recorder", enable_rosout=False, start_parameter_services=False)
-    recorder = Recorder(node, opts, writer)
+    node = rclpy.create_node(NODE_NAME, enable_rosout=False, start_parameter_services=False)
+    recorder = Recorder(node, opts, writer, diagnostics=Diagnostics(node, period_s=DIAGNOSTICS_PERIOD_S))
 
     def request_stop(_signum, _frame):
         recorder.stop_requested = True
 
     previous = {s: signal.signal(s, request_stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    rows = None
     try:
         print(f"{PREFIX} recording to {opts.output}", flush=True)
         recorder.spin()
         rows = recorder.finish()
+        recorder.publish_status(rows, final=True)  # after the bag is closed: amb-rig's summary reads it
     finally:
+        if rows is None:  # a bug stopped the recording: still finish the file rather than leave it open
+            with contextlib.suppress(Exception):
+                writer.close()
         for s, handler in previous.items():
             signal.signal(s, handler)
         node.destroy_node()

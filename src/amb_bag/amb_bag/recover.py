@@ -29,7 +29,7 @@ from mcap.reader import NonSeekingReader, SeekingReader
 from mcap.writer import Writer
 
 from .errors import BagError, BagFormatError
-from .loss import DIAGNOSTICS_TOPIC, LossTracker, custom_data, loss_table, total_lost
+from .loss import DIAGNOSTICS_TOPIC, RECORDER_NAME, LossTracker, custom_data, loss_table, total_lost
 from .metadata import METADATA_FILE, FileRecord, TopicRecord, build_metadata, load_metadata, write_metadata
 from .qos import profiles_from_yaml
 from .reader import READ_ERRORS, check_mcap_magic, damaged_is_format_error
@@ -78,6 +78,7 @@ class _FileScan:
         self.counts: dict[str, int] = {}
         self.start, self.end = None, None
         self.loss = LossTracker()
+        self.own_reports = 0  # the recorder's own /diagnostics messages (not counted in the loss)
 
     def add(self, schema, channel, message) -> None:
         self.channels.setdefault(channel.id, (schema, channel))
@@ -85,8 +86,8 @@ class _FileScan:
         t = message.log_time
         self.start = t if self.start is None else min(self.start, t)
         self.end = t if self.end is None else max(self.end, t)
-        if channel.topic == DIAGNOSTICS_TOPIC:
-            self.loss.update_from_cdr(message.data)
+        if channel.topic == DIAGNOSTICS_TOPIC and self.loss.update_from_cdr(message.data, RECORDER_NAME):
+            self.own_reports += 1
 
 
 def verify_file(path: Path) -> _FileScan:
@@ -195,6 +196,7 @@ def check(path, repair: bool = True) -> dict:
 def _rows(scans: list[_FileScan], progress: dict) -> dict:
     recovered: dict[str, int] = {}
     tracker = LossTracker()
+    own = sum(scan.own_reports for scan in scans)
     for scan in scans:
         for topic, n in scan.counts.items():
             recovered[topic] = recovered.get(topic, 0) + n
@@ -206,12 +208,13 @@ def _rows(scans: list[_FileScan], progress: dict) -> dict:
     rows = {}
     for topic in sorted(set(recovered) | set(published) | set(received)):
         got = recovered.get(topic, 0)
+        from_others = got - (own if topic == DIAGNOSTICS_TOPIC else 0)
         known = max(received.get(topic, 0), published.get(topic, 0))
         rows[topic] = {
             "recovered": got,
             "received": received.get(topic),
             "published": published.get(topic),
-            "lost_at_least": max(0, known - got),
+            "lost_at_least": max(0, known - from_others),
         }
     return rows
 
@@ -245,7 +248,8 @@ def _write_metadata(bag_dir: Path, scans: list[_FileScan], rows: dict, report: d
         else FileRecord(s.path.name)
         for s in scans
     ]  # fmt: skip
-    received = {t: r["recovered"] for t, r in rows.items()}
+    own = sum(scan.own_reports for scan in scans)
+    received = {t: r["recovered"] - (own if t == DIAGNOSTICS_TOPIC else 0) for t, r in rows.items()}
     published = {t: r["published"] for t, r in rows.items() if r["published"] is not None}
     extra = {RECOVERY_KEY: json.dumps({k: report[k] for k in ("damaged_files", "recovered_messages",
                                                               "lost_at_least")}, separators=(",", ":"))}  # fmt: skip
