@@ -249,3 +249,28 @@ def _clock_span(bag: Path) -> int:
 
     times = [log for _, _, log, _, _ in Bag(bag).messages(["/clock"])]
     return max(times) - min(times)
+
+
+def test_late_best_effort_publisher_widens_the_subscription(tmp_path, venv_bin):
+    """A reliable publisher first, then a best-effort one on the same topics: the recorder widens its QoS."""
+    bag = tmp_path / "mixed"
+    rec_cmd = [str(venv_bin / "amb-bag"), "record", "-o", str(bag), "--topics", *mix.TOPICS]
+    pub = [sys.executable, str(PUBLISHER), "--steps", "300", "--rate", "500", "--wait-subscribers", "30"]
+    with spawn(rec_cmd, tmp_path / "mixed-rec.log") as rec:
+        with spawn([*pub, "--name", "reliable_pub", "--log", str(tmp_path / "a.pkl")], tmp_path / "a.log") as a:
+            assert a.wait(RUN_TIMEOUT_S) == 0 and "publisher: subscribed 9" in a.text(), a.text()
+        with spawn([*pub, "--name", "best_effort_pub", "--best-effort"], tmp_path / "b.log") as b:
+            assert b.wait(RUN_TIMEOUT_S) == 0, b.text()
+            subscribed = b.text()
+        assert rec.stop() == 0
+    log = rec.log.read_text()
+    # the best-effort publisher only starts once it is matched, which needs the widened subscription
+    assert "publisher: subscribed 9" in subscribed, subscribed
+    assert "/clock: new publisher QoS, subscription widened" in log, log
+    sent_a = _by_topic(pickle.loads((tmp_path / "a.pkl").read_bytes()))
+    recorded = _bag_bytes(bag)
+    assert recorded["/clock"][:300] == sent_a["/clock"]  # the reliable run, complete and in order
+    assert len(recorded["/clock"]) > 300  # and the best-effort one was recorded too
+    rows = custom_json(load_metadata(bag), CUSTOM_KEY)
+    assert rows["/clock"]["published"] == 600
+    assert rows["/clock"]["lost"] == 600 - rows["/clock"]["received"] == 600 - len(recorded["/clock"])

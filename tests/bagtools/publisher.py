@@ -28,6 +28,7 @@ def main() -> None:
     p.add_argument("--wait-subscribers", type=float, default=0.0, help="wait up to S s for a subscriber per topic")
     p.add_argument("--best-effort", action="store_true")
     p.add_argument("--depth", type=int, default=1000)
+    p.add_argument("--name", default="bag_test_publisher", help="node name, also the diagnostics status name")
     p.add_argument("--linger", type=float, default=0.5, help="seconds to stay alive after the last message")
     args = p.parse_args()
 
@@ -41,7 +42,7 @@ def main() -> None:
     from amb_bag.msgdefs import message_class
 
     rclpy.init()
-    node = rclpy.create_node("bag_test_publisher", enable_rosout=False)
+    node = rclpy.create_node(args.name, enable_rosout=False)
     rel = ReliabilityPolicy.BEST_EFFORT if args.best_effort else ReliabilityPolicy.RELIABLE
     pubs = {}
     for topic, type_name in mix.TOPICS.items():
@@ -68,7 +69,7 @@ def main() -> None:
 
     def publish_diagnostics(k):
         counts["/diagnostics"] += 1  # the count includes this message
-        msg = mix.diagnostics_message(k, counts)
+        msg = mix.diagnostics_message(k, counts, name=args.name)
         counts["/diagnostics"] -= 1
         publish("/diagnostics", msg)
 
