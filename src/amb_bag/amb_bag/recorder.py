@@ -175,7 +175,7 @@ class Recorder:
             data, info = taken
             recv = info["received_timestamp"] or time.time_ns()
             write(tid, recv, data, info["source_timestamp"] or recv, info["publication_sequence_number"] & 0xFFFFFFFF)
-            if sub.is_diagnostics and self.loss.update_from_cdr(data, NODE_NAME):
+            if sub.is_diagnostics and self.loss.update_from_cdr(data, self.node.get_name()):
                 self.own_reports += 1
             n += 1
             if delay:
