@@ -212,7 +212,7 @@ def run_simulate(args):
     steps = round(args.duration / h)
     if steps < 1:
         raise InputError("--duration must cover at least one time step")
-    run = newmark(ps, s.model.M, x0, h, steps, every=1)
+    run = newmark(ps, s.model.M, x0, h, steps, every=1, forcing=s.cfg.base_forcing)
     q_fe = s.model.to_fe(run.x[:, : s.model.n])
     disk = q_fe[:, 4 * (disk_node - 1) : 4 * (disk_node - 1) + 2]
     t_strobe, n_strobe = run.t[::every], np.linalg.norm(run.x[::every], axis=1)

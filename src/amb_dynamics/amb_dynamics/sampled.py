@@ -33,10 +33,11 @@ class PlantStepper:
     model : StructuralModel
     cfg : RotorConfig (formulation, drive model, axial stiffening)
     Ts : float, sample period (s)
-    forcing : bool, include the base-motion forcing f(t) (PHYSICS.md 4.7)
+    forcing : bool or None, include the base-motion forcing f(t) (PHYSICS.md 4.7); None: cfg.base_forcing
     """
 
-    def __init__(self, model: StructuralModel, cfg: RotorConfig, Ts: float, forcing: bool = True):
+    def __init__(self, model: StructuralModel, cfg: RotorConfig, Ts: float, forcing: bool | None = None):
+        forcing = cfg.base_forcing if forcing is None else forcing
         n = model.n
         self.n, self.Ts, self.model = n, Ts, model
         self.spin = cfg.spin_rad_s
@@ -105,7 +106,7 @@ class SampledLoop:
         cfg: RotorConfig,
         Ts: float | None = None,
         delay_samples: int | None = None,
-        forcing: bool = True,
+        forcing: bool | None = None,
     ):
         self.Ts = Ts if Ts is not None else 1.0 / cfg.controller.rate_hz
         self.cfg, self.model = cfg, model
