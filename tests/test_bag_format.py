@@ -166,3 +166,15 @@ def test_subscription_qos_matches_every_offer():
     assert (q.reliability, q.durability) == (ReliabilityPolicy.RELIABLE, DurabilityPolicy.TRANSIENT_LOCAL)
     q = request_for_offers([latched, mix.RELIABLE_OFFER])
     assert q.durability == DurabilityPolicy.VOLATILE
+
+
+@pytest.mark.parametrize("angles", [(0.3, 0.0, 0.0), (0.0, -0.4, 0.0), (0.0, 0.0, 0.25), (0.2, -0.3, 0.7)])
+def test_plot_attitude_follows_the_project_axes(angles):
+    from scipy.spatial.transform import Rotation
+
+    from amb_bag.plot import euler_from_quaternion
+
+    roll, pitch, yaw = angles
+    # PHYSICS.md section 5: R = Ry(yaw) Rz(pitch) Rx(roll), intrinsic; scipy builds it independently
+    x, y, z, w = Rotation.from_euler("YZX", [yaw, pitch, roll]).as_quat()
+    assert euler_from_quaternion(x, y, z, w) == pytest.approx((roll, pitch, yaw), abs=1e-12)

@@ -141,6 +141,9 @@ def test_info_and_plot_series_from_the_recorded_run(run, tmp_path, capsys):
     t_disp, _, names = series["/amb/displacement"]
     assert names == mix.CHANNELS and t_disp == pytest.approx(np.arange(STEPS) * mix.STEP_S, abs=1e-9)
     assert t == pytest.approx(k * mix.STEP_S, abs=2e-3)  # log time mapped through /clock to simulated time
+    t_imu, attitude, _ = series["/base/imu"]  # the mix pitches the base: 0.3 sin(24.5 t) about Z
+    assert attitude[:, 1] == pytest.approx(0.3 * np.sin(24.5 * t_imu), abs=1e-12)
+    assert np.abs(attitude[:, [0, 2]]).max() < 1e-15
     with pytest.raises(SystemExit) as exc:
         cli.main(["plot", str(bag), "--out", str(tmp_path / "run.png")])
     assert exc.value.code == 0 and (tmp_path / "run.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -56,9 +56,9 @@ def step_messages(k: int) -> list[tuple[str, str, object]]:
     v3 = T["geometry_msgs/msg/Vector3"]
     imu = T["sensor_msgs/msg/Imu"](
         header=_header(k, "base"),
-        orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=math.sin(a / 2), z=0.0, w=math.cos(a / 2)),
+        orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(a / 2), w=math.cos(a / 2)),
         orientation_covariance=np.zeros(9),
-        angular_velocity=v3(x=0.0, y=7.35 * math.cos(24.5 * t), z=0.0),
+        angular_velocity=v3(x=0.0, y=0.0, z=7.35 * math.cos(24.5 * t)),  # pitch: about Z (PHYSICS.md 5)
         angular_velocity_covariance=np.zeros(9),
         linear_acceleration=v3(x=0.0, y=0.0, z=9.81),
         linear_acceleration_covariance=np.zeros(9),
@@ -68,7 +68,7 @@ def step_messages(k: int) -> list[tuple[str, str, object]]:
         ("/clock", TOPICS["/clock"], T["rosgraph_msgs/msg/Clock"](clock=_time(k))),
         ("/base/imu", TOPICS["/base/imu"], imu),
         ("/base/angular_acceleration", TOPICS["/base/angular_acceleration"],
-         T["geometry_msgs/msg/Vector3Stamped"](header=_header(k, "base"), vector=v3(x=0.0, y=-180.0 * a, z=0.0))),
+         T["geometry_msgs/msg/Vector3Stamped"](header=_header(k, "base"), vector=v3(x=0.0, y=0.0, z=-180.0 * a))),
         ("/amb/displacement", TOPICS["/amb/displacement"], _joint_state(k, CHANNELS, position=1e-5 * np.sin(phase))),
         ("/amb/current", TOPICS["/amb/current"], _joint_state(k, CHANNELS, effort=0.5 * np.cos(phase))),
         ("/amb_plant/state", TOPICS["/amb_plant/state"],

@@ -2,7 +2,8 @@
 
 Panels (each only if its topic is in the bag): AMB displacements from /amb/displacement as a fraction of the
 air gap (``--config`` rotor file, default the seed rotor's 2.5e-3 m), control currents from /amb/current
-(effort, A), base attitude from /base/imu (roll, pitch, yaw of the base->inertial quaternion, rad), and the
+(effort, A), base attitude from /base/imu (roll about X, pitch about Z, yaw about Y, of the base->inertial
+quaternion, rad, as PHYSICS.md section 5), and the
 spectral radius rho = max|mu| from /stability/multipliers (layout [k, 2] = re, im) against the stability
 limit 1.  Times are the messages' header stamps (simulated time in lockstep); /stability/multipliers has no
 stamp, so its log time is mapped to simulated time through the recorded /clock (log time from the start if
@@ -28,11 +29,16 @@ def _stamp_s(msg) -> float:
 
 
 def euler_from_quaternion(x: float, y: float, z: float, w: float) -> tuple[float, float, float]:
-    """Roll, pitch, yaw (rad, ZYX convention) of a unit quaternion (x, y, z, w)."""
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return roll, pitch, yaw
+    """Roll, pitch, yaw (rad) of a unit base->inertial quaternion (x, y, z, w), in this project's convention.
+
+    PHYSICS.md section 5: roll about X (the rotor axis), yaw about Y, pitch about Z, and the attitude of a
+    combined motion is R = Ry(yaw) Rz(pitch) Rx(roll).  With that product, R[1,0] = sin(pitch),
+    (R[0,0], R[2,0]) = cos(pitch) (cos yaw, -sin yaw) and (R[1,1], R[1,2]) = cos(pitch) (cos roll, -sin roll).
+    """
+    r00, r10, r20 = 1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)
+    r11, r12 = 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
+    pitch = math.asin(max(-1.0, min(1.0, r10)))
+    return math.atan2(-r12, r11), pitch, math.atan2(-r20, r00)
 
 
 def read_series(bag: Bag) -> dict:
