@@ -60,8 +60,16 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
     if sets:
         common["set"] = sets
     per = {name: {} for name in NODES}
-    per["plant"]["duration_s"] = float(args.duration) if not args.no_plant else 0.0
+    # lockstep: the plant ends the run after --duration of simulated time; realtime: amb-rig ends it after
+    # --duration of wall time by stopping every node at once (a plant that stopped first would leave the
+    # controller without samples, which it rightly reports as an ERROR)
+    per["plant"]["duration_s"] = float(args.duration) if args.mode == "lockstep" else 0.0
+    if args.initial_displacement:
+        per["plant"]["initial_displacement"] = float(args.initial_displacement)
     per["plant"]["start_timeout_s"] = float(args.start_timeout)
+    per["plant"]["min_diagnostics_readers"] = 1  # amb-rig's collector: it must hear the plant's final report
+    if args.mode == "realtime" and args.rt_priority:
+        common["rt_priority"] = int(args.rt_priority)
     if getattr(args, "bag", None):
         per["plant"]["min_subscribers"] = 2  # the controller and the recorder: record from the first sample
     for item in args.param:
@@ -90,7 +98,7 @@ def node_specs(args, run_dir: Path) -> list[ProcessSpec]:
     for name in names:
         package, ros_exe, script, node = NODES[name]
         cmd = [resolve_executable(package, ros_exe, script), "--ros-args", "--params-file", str(params)]
-        specs.append(ProcessSpec(name, cmd, node=node, ends_run=(name == "plant")))
+        specs.append(ProcessSpec(name, cmd, node=node, ends_run=(name == "plant" and args.mode == "lockstep")))
     return specs
 
 
@@ -102,7 +110,7 @@ def bag_process(args, run_dir: Path) -> ProcessSpec | None:
     exe = str(exe) if exe.is_file() else shutil.which("amb-bag")
     if exe is None:
         raise FileNotFoundError("--bag needs the amb-bag recorder, which is not installed")
-    return ProcessSpec("recorder", [exe, "record", "-o", str(args.bag)], node="amb_bag_recorder", required=True)
+    return ProcessSpec("recorder", [exe, "record", "-o", str(args.bag)], node=None, required=True, stop_tier=1)
 
 
 EXTRA_PROCESSES: list[Callable[..., ProcessSpec | None]] = [bag_process]

@@ -41,10 +41,23 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--amplitude", type=float, help="base motion amplitude (rad)")
     r.add_argument("--frequency", type=float, help="base motion angular frequency (rad/s)")
     r.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
+    r.add_argument(
+        "--initial-displacement",
+        type=float,
+        default=0.0,
+        metavar="M",
+        help="initial lateral displacement of the disk (m), e.g. 1e-3 as in the paper",
+    )
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override (repeatable)")
     r.add_argument("--config", help="rotor config YAML (default: the seed rotor)")
     r.add_argument("--param", action="append", default=[], metavar="NODE:NAME=VALUE",
                    help="node parameter, NODE one of base_motion, controller, plant (repeatable)")  # fmt: skip
+    r.add_argument(
+        "--rt-priority",
+        type=int,
+        default=20,
+        help="realtime: SCHED_FIFO priority of the node loops (0 = normal scheduling)",
+    )
     r.add_argument("--json", action="store_true", help="print the summary as JSON")
     r.add_argument("--no-plant", action="store_true", help="no plant: a real rig supplies /amb/displacement")
     r.add_argument("--bag", help="record the run with amb-bag into this folder")
@@ -111,7 +124,9 @@ def run(args, cfg) -> int:
     motion = (args.motion or cfg.base_motion.kind, args.amplitude, args.frequency)
     run_info = {
         "mode": args.mode,
-        "motion": f"{motion[0]} A={_g(motion[1], cfg.base_motion.amplitude)} rad "
+        "motion": "static base"
+        if motion[0] == "none"
+        else f"{motion[0]} A={_g(motion[1], cfg.base_motion.amplitude)} rad "
         f"w={_g(motion[2], cfg.base_motion.frequency)} rad/s",
         "duration_s": args.duration,
         "rate_hz": load_config(args.config, args.set).controller.rate_hz,
@@ -161,13 +176,10 @@ def wait_run(args, sup: Supervisor, collector, interrupted) -> list[str]:
     run_start = time.monotonic()
     limit = args.timeout if args.timeout else default_timeout(args)
     while interrupted.signum is None:
-        if sup.died_early():
+        if sup.died_early() or (plant is not None and plant.poll() is not None):
             break
-        if plant is not None:
-            if plant.poll() is not None:
-                break
-        elif time.monotonic() - run_start >= args.duration:
-            break
+        if (plant is None or not plant.spec.ends_run) and time.monotonic() - run_start >= args.duration:
+            break  # realtime or --no-plant: amb-rig ends the run after --duration of wall time
         if time.monotonic() - run_start > limit:
             return [f"run timed out after {limit:g} s of wall time (--timeout)"]
         time.sleep(0.05)

@@ -39,6 +39,7 @@ class ProcessSpec:
     ends_run: bool = False
     required: bool = True
     env: dict[str, str] = field(default_factory=dict)
+    stop_tier: int = 0  # stopped after every process of a lower tier has exited
 
 
 def _pdeathsig() -> None:  # runs in the child between fork and exec
@@ -124,8 +125,18 @@ class Supervisor:
         return [c for c in self.children if c.spec.required and not c.spec.ends_run and c.poll() is not None]
 
     def stop_all(self) -> None:
-        """SIGINT everyone still running, then escalate; reap all."""
-        live = [c for c in reversed(self.children) if c.poll() is None]
+        """Tier by tier (by ``stop_tier``): SIGINT everyone still running, then escalate; reap all."""
+        for tier in sorted({c.spec.stop_tier for c in self.children}):
+            self._stop([c for c in self.children if c.spec.stop_tier == tier])
+        for c in self.children:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                c.popen.wait(timeout=1.0)
+            c.poll()
+            c.close()
+
+    @staticmethod
+    def _stop(children: list[Child]) -> None:
+        live = [c for c in children if c.poll() is None]
         for c in live:
             c.stopped_by_us = True
         for sig, wait_s in ((signal.SIGINT, SIGINT_WAIT_S), (signal.SIGTERM, SIGTERM_WAIT_S), (signal.SIGKILL, 5.0)):
@@ -137,11 +148,6 @@ class Supervisor:
             end = time.monotonic() + wait_s
             while time.monotonic() < end and any(c.poll() is None for c in live):
                 time.sleep(0.02)
-        for c in self.children:
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                c.popen.wait(timeout=1.0)
-            c.poll()
-            c.close()
 
     def pids(self) -> list[int]:
         return [c.pid for c in self.children]

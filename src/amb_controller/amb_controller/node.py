@@ -29,13 +29,14 @@ from amb_dynamics.amb import DiscretePID, DiscretePIDCoefficients
 from amb_dynamics.errors import InputError
 from amb_dynamics.structure import AMBGains, channel_names
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
-from amb_ros.loop import Ticker, Waiter
+from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos
 from amb_ros.runtime import run_node
 
 from .excitation import KINDS, Excitation
+from .realtime import on_realtime_sample, run_sample_triggered, run_timer_triggered
 
 
 def specs() -> list[ParamSpec]:
@@ -50,6 +51,9 @@ def specs() -> list[ParamSpec]:
                   config_key=c + "current_limit"),
         ParamSpec("delay_samples", None, "one-sample computation delay (0 or 1)", "samples", 0, 1,
                   config_key=c + "delay_samples"),
+        ParamSpec("trigger", "sample", "realtime: compute on each sample's arrival (sample, as an ADC interrupt does) "
+                  "or on the controller's own wall-clock ticks (timer: up to one sample of extra delay)",
+                  choices=("sample", "timer")),
         ParamSpec("sensor_timeout_s", 0.1, "no new sample for this long: zero current and ERROR (realtime)", "s",
                   1e-4, 3600.0),
         ParamSpec("excitation_kind", "none", "current injected for identification", choices=KINDS),
@@ -90,7 +94,10 @@ class ControllerNode(RigNode):
         self.sensor_state = "waiting"
         self.compute = Timings()
         self.period_error = Timings()
+        self.latency = Timings()
         self.missed = self.skipped = self.ticks = 0
+        self.last_update_ns: int | None = None
+        self.last_stamp: int | None = None
         self.t_wall0 = time.monotonic()
 
     # -- receive ------------------------------------------------------------------------------------
@@ -102,10 +109,11 @@ class ControllerNode(RigNode):
             self.counters.reject(m.DISPLACEMENT, str(exc))
             return
         self.last_sample_wall = time.monotonic()
-        if self.sensor_state == "lost":
-            self.sensor_state = "ok"  # samples are back
+        self.sensor_state = "ok"  # (again) receiving samples
         if self.mode == "realtime":
             self.latest, self.fresh = (t_ns, y.copy()), True
+            if self.p["trigger"] == "sample":
+                on_realtime_sample(self, t_ns, y)
             return
         if t_ns % self.Ts_ns:
             self.counters.reject(m.DISPLACEMENT, f"stamp {t_ns} ns is not on the {self.Ts_ns} ns sample grid")
@@ -149,41 +157,13 @@ class ControllerNode(RigNode):
                 self.waiter.wait(1.0)
                 self.drain()
                 self.housekeeping()
+        elif self.p["trigger"] == "sample":
+            run_sample_triggered(self)
         else:
-            self.run_realtime()
+            run_timer_triggered(self)
         self.waiter.close()
         self.diag.publish_final(*self.status(), self.values())
         return 0
-
-    def run_realtime(self) -> None:
-        ticker = Ticker(self.Ts_ns)
-        half, timeout = self.Ts_ns // 2, self.p["sensor_timeout_s"]
-        zero = np.zeros(len(self.channels))
-        while not self.stop.is_set:
-            skipped = ticker.skipped
-            k, lateness, period = ticker.wait_next(self.waiter, self.drain, self.stop)
-            if self.stop.is_set:
-                return
-            self.ticks += 1
-            self.missed += (lateness > half) + (ticker.skipped - skipped)
-            self.skipped = ticker.skipped
-            if period is not None:
-                self.period_error.add(abs(period - self.Ts_ns) * 1e-9)
-            if self.latest is None:
-                pass  # nothing to answer yet
-            elif time.monotonic() - self.last_sample_wall > timeout:
-                if self.sensor_state != "lost":
-                    self.sensor_losses += 1
-                    self.pid.reset()
-                self.sensor_state = "lost"
-                self.safe_ticks += 1
-                self.pub.publish(self.codec.encode(self.get_clock().now().nanoseconds, zero))
-            else:
-                self.repeated += not self.fresh
-                self.fresh = False
-                self.answer(self.latest[0], self.latest[1], k * self.Ts)
-            if k % 16 == 0:
-                self.housekeeping()
 
     def housekeeping(self) -> None:
         self.waiter.serve()
@@ -233,9 +213,10 @@ class ControllerNode(RigNode):
         )
         out.update(self.compute.summary("compute"))
         if self.mode == "realtime":
-            out.update({"ticks": str(self.ticks), "missed deadlines": str(self.missed),
+            out.update({"trigger": self.p["trigger"], "ticks": str(self.ticks), "missed deadlines": str(self.missed),
                         "skipped ticks": str(self.skipped), "repeated samples": str(self.repeated)})  # fmt: skip
             out.update(self.period_error.summary("period error"))
+            out.update(self.latency.summary("sample-to-command latency"))
         return out
 
 

@@ -72,6 +72,7 @@ def run_realtime(node) -> None:
         skipped = ticker.skipped
         k, lateness, period = ticker.wait_next(node.waiter, node.drain, node.stop)
         if node.stop.is_set:
+            node.finished = node.p["duration_s"] == 0  # an endless realtime run ends when it is stopped
             return
         node.missed += (lateness > half) + (ticker.skipped - skipped)
         node.skipped = ticker.skipped

@@ -44,6 +44,8 @@ from amb_ros.runtime import RunFailed, run_node
 from .loops import run_lockstep, run_realtime
 from .sensor import CommandPolicy, SensorModel
 
+SAMPLE_MEMORY = 4096  # realtime: published samples whose stamp a command may still answer
+
 
 def specs() -> list[ParamSpec]:
     return [
@@ -61,6 +63,8 @@ def specs() -> list[ParamSpec]:
         ParamSpec("start_timeout_s", 30.0, "wall time to wait for controller and base motion to connect", "s",
                   0.1, 3600.0),
         ParamSpec("min_subscribers", 1, "readers of /amb/displacement required before starting", "", 1, 100),
+        ParamSpec("min_diagnostics_readers", 0, "readers of /diagnostics required before starting (amb-rig: 1)",
+                  "", 0, 100),
         ParamSpec("initial_displacement", 0.0, "initial lateral (v) displacement of the disk node", "m", -1.0, 1.0),
         ParamSpec("max_displacement_ratio", 100.0, "stop the run when |y| exceeds this many air gaps (the linear "
                   "model means nothing there)", "", 1.0, 1e12),
@@ -112,6 +116,8 @@ class PlantNode(RigNode):
         self.acc: dict[int, np.ndarray] = {}
         self.latest_rates = (np.zeros(3), np.zeros(3))
         self.k_now = 0  # lockstep: the step being computed; realtime: the current tick
+        self.sample_index: dict[int, int] = {}  # realtime: stamp of a published sample -> its tick
+        self._last_cmd_stamp = -1
 
     def initial_state(self, disk_v: float) -> np.ndarray:
         n = self.model.n
@@ -127,6 +133,7 @@ class PlantNode(RigNode):
     # -- receive handlers (called from the loops and from executor callbacks) -------------------------
     def _step_of(self, topic: str, t_ns: int) -> int | None:
         if self.mode == "realtime":
+            self._last_cmd_stamp = t_ns
             return self.k_now
         if t_ns % self.Ts_ns:
             self.counters.reject(topic, f"stamp {t_ns} ns is not on the {self.Ts_ns} ns sample grid")
@@ -147,7 +154,11 @@ class PlantNode(RigNode):
         if k is None:
             return
         if self.mode == "realtime":
-            self.policy.command(current.copy(), k)
+            answered = self.sample_index.get(self._last_cmd_stamp)
+            if answered is None:
+                self.counters.reject(m.CURRENT, "command answers no sample of this plant (or one too old)")
+            else:
+                self.policy.command(current.copy(), answered)
         elif k == self.k_now and not self.finished:
             self.commands[k] = current.copy()
         else:
@@ -187,6 +198,11 @@ class PlantNode(RigNode):
                 f"{self.peak[j] / self.air_gap:.3g} x air gap at t = {k * self.Ts:.6g} s (max_displacement_ratio)"
             )
         self.disp_pub.publish(self.disp_codec.encode(stamp_ns, self.sensor.measure(y)))
+        if self.mode == "realtime":
+            self.sample_index[stamp_ns] = k
+            self.sample_index.pop(stamp_ns - SAMPLE_MEMORY * self.Ts_ns, None)  # bounded memory (approximately)
+            if len(self.sample_index) > 2 * SAMPLE_MEMORY:
+                self.sample_index = dict(list(self.sample_index.items())[-SAMPLE_MEMORY:])
         if k % self.p["state_every"] == 0:
             self.state_pub.publish(self.state_codec.encode(stamp_ns, self.x))
             self.counters.published[m.STATE] += 1
@@ -230,6 +246,8 @@ class PlantNode(RigNode):
         for sub in (self.cmd_sub, self.imu_sub, self.acc_sub):
             if self.count_publishers(sub.topic_name) < 1:
                 missing.append(f"publisher of {sub.topic_name}")
+        if self.diag.pub.get_subscription_count() < self.p["min_diagnostics_readers"]:
+            missing.append(f"reader of {m.DIAGNOSTICS}")
         if self.clock_pub is not None and self.clock_pub.get_subscription_count() < 1:
             missing.append(f"reader of {m.CLOCK} (base_motion)")
         return missing
@@ -301,7 +319,7 @@ class PlantNode(RigNode):
             out.update(self.round_trip.summary("command wait"))
         else:
             pol = self.policy
-            out.update({"commands held (samples)": str(pol.held), "zero current (samples)": str(pol.zeroed),
+            out.update({"late commands held (samples)": str(pol.held), "zero current (samples)": str(pol.zeroed),
                         "command losses": str(pol.losses), "command state": pol.state,
                         "missed deadlines": str(self.missed), "skipped ticks": str(self.skipped)})  # fmt: skip
             out.update(self.period_error.summary("period error"))

@@ -3,9 +3,11 @@
 Sensor: measured displacement = quantize(y(t_{k-d}) + noise), with d samples of delay, zero-mean Gaussian noise
 (seeded, so a lockstep run stays reproducible) and a quantization step; all off by default.
 Amplifier: the applied current is clipped at +/- current_limit.
-Command policy (realtime): the latest command is applied; if none has arrived for ``hold_samples`` samples the
-last one is still held, after that the current is set to zero (what an amplifier does when its command link
-drops: de-energise; the rotor then settles on its touchdown bearings).  Before the first command: zero.
+Command policy (realtime): over [t_{k-1}, t_k] the plant applies the latest command; on time it answers sample
+k-1 (zero delay, as in the sampled-data model).  A late command (answering an older sample) is held and counted;
+once the newest command answers a sample more than ``hold_samples`` samples old, the current is set to zero (what
+an amplifier does when its command link drops: de-energise; the rotor then settles on its touchdown bearings).
+Before the first command: zero.
 """
 
 from __future__ import annotations
@@ -49,25 +51,28 @@ class CommandPolicy:
         self.zero = np.zeros(n_channels)
         self.last: np.ndarray | None = None
         self.last_k = -1
-        self.held = 0  # samples applied with a stale (held) command
+        self.held = 0  # samples applied with a late (held) command
         self.zeroed = 0  # samples with zero current because commands stopped
         self.waiting = 0  # samples before the first command
         self.losses = 0  # times the command stream went silent beyond the hold window
         self.state = "waiting"
 
-    def command(self, current: np.ndarray, k: int) -> None:
-        self.last, self.last_k = current, k
-        self.state = "ok"
+    def command(self, current: np.ndarray, answered_k: int) -> None:
+        """A command that answers sample ``answered_k``; an older one than the latest is ignored."""
+        if answered_k >= self.last_k:
+            self.last, self.last_k = current, answered_k
+            self.state = "ok"
 
     def current(self, k: int) -> np.ndarray:
-        """Current to apply at sample k (A)."""
+        """Current to apply over [t_{k-1}, t_k] (A)."""
         if self.last is None:
             self.waiting += 1
             return self.zero
-        age = k - self.last_k
-        if age <= 1:  # the command of the previous sample: normal for an asynchronous loop
+        age = k - 1 - self.last_k  # samples of delay beyond the model's
+        if age <= 0:
+            self.state = "ok"
             return self.last
-        if age <= self.hold + 1:
+        if age <= self.hold:
             self.held += 1
             self.state = "holding"
             return self.last

@@ -23,17 +23,21 @@ class Waiter:
 
     def __init__(self, node, subscriptions):
         self.node, self.subs = node, list(subscriptions)
-        self._ws = _rclpy.WaitSet(len(self.subs), 0, 0, 0, 0, 0, node.context.handle)
+        self._ws = _rclpy.WaitSet(max(1, len(self.subs)), 0, 0, 0, 0, 0, node.context.handle)
         self._executor = SingleThreadedExecutor(context=node.context)
         self._executor.add_node(node)
         self._next_serve = 0.0
 
     def wait(self, timeout_s: float) -> None:
         """Block until a subscription may have data, or ``min(timeout_s, POLL_S)`` has passed."""
+        timeout_s = max(0.0, min(timeout_s, POLL_S))
+        if not self.subs:  # rcl refuses an empty wait set
+            time.sleep(timeout_s)
+            return
         self._ws.clear_entities()
         for sub in self.subs:
             self._ws.add_subscription(sub.handle)
-        self._ws.wait(int(max(0.0, min(timeout_s, POLL_S)) * 1e9))
+        self._ws.wait(int(timeout_s * 1e9))
 
     @staticmethod
     def take(sub) -> bytes | None:

@@ -1,0 +1,182 @@
+"""Lockstep steps/s of the node suite vs a bare rclpy ping-pong, and realtime 1 kHz period error.
+
+    .venv/bin/python benchmarks/bench_lockstep.py [--duration 2] [--round-trips 5000]
+
+1. Bare rclpy inter-process ping-pong, the physical limit of one lockstep step (one round trip per step): two
+   processes echo a 4-channel JointState with the nodes' own transport settings (reliable, transient local,
+   raw CDR, one reused wait set, synchronous Fast DDS publication).  Measured before and after the lockstep
+   run; their mean is the baseline.
+2. Lockstep: ``amb-rig run`` with base_motion, plant and controller as separate processes (the seed rotor,
+   5 kHz, pitch 0.3 rad at 24.5 rad/s, current limit lifted so the linear run stays defined); steps/s is the
+   plant's own loop rate (start-up excluded).  Printed: steps/s and its ratio to the ping-pong.
+3. Realtime 1 kHz for 5 s (modal_cutoff 800 rad/s, stable at 1 kHz): the controller's period error p50/p99/max
+   and missed deadlines.  Goals: >= 2,000 lockstep steps/s; realtime p99 period error < 100 us.
+
+``main()`` prints a small table and returns a dict (benchmarks/run_all.py calls it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+BIN = Path(sys.executable).parent
+GOAL_STEPS_PER_S = 2000.0
+GOAL_P99_US = 100.0
+
+
+def _env() -> dict:
+    from amb_ros.env import child_env
+    from amb_ros.runtime import low_latency_dds
+
+    env = child_env(OPENBLAS_NUM_THREADS="1")
+    low_latency_dds(env)
+    return env
+
+
+# -- ping-pong (both sides run as child processes of this script) ---------------------------------------
+def _pingpong_side(role: str, tag: str, n: int) -> None:
+    import numpy as np
+    import rclpy
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+    from sensor_msgs.msg import JointState
+
+    from amb_ros.messages import joint_state_codec
+    from amb_ros.qos import lockstep_qos
+
+    rclpy.init()
+    node = rclpy.create_node(f"pingpong_{role}")
+    out_t, in_t = (
+        (f"/bench/ping{tag}", f"/bench/pong{tag}") if role == "ping" else (f"/bench/pong{tag}", f"/bench/ping{tag}")
+    )
+    pub = node.create_publisher(JointState, out_t, lockstep_qos())
+    sub = node.create_subscription(JointState, in_t, lambda _: None, lockstep_qos(), raw=True)
+    codec = joint_state_codec(("amb1_y", "amb1_z", "amb5_y", "amb5_z"), ("position",))
+    ws = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, node.context.handle)
+    end = time.monotonic() + 30.0
+    while (pub.get_subscription_count() < 1 or node.count_publishers(in_t) < 1) and time.monotonic() < end:
+        time.sleep(0.01)
+
+    def receive() -> bytes:
+        limit = time.monotonic() + 10.0
+        while time.monotonic() < limit:
+            out = sub.handle.take_message(sub.msg_type, True)
+            if out is not None:
+                return out[0]
+            ws.clear_entities()
+            ws.add_subscription(sub.handle)
+            ws.wait(100_000_000)
+        raise SystemExit(f"pingpong {role}: no message for 10 s")
+
+    y = np.zeros(4)
+    if role == "ping":
+        time.sleep(0.2)
+        t0 = time.perf_counter()
+        for k in range(n):
+            y[0] = k
+            pub.publish(codec.encode(k, y))
+            if codec.decode(receive())[1][0] != k:
+                raise SystemExit("pingpong: echo out of order")
+        rate = n / (time.perf_counter() - t0)
+        print(json.dumps({"round_trips_per_s": rate}), flush=True)
+    else:
+        for _ in range(n):
+            pub.publish(receive())
+        pub.wait_for_all_acked()
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+def pingpong(n: int) -> float:
+    env, tag = _env(), f"{os.getpid()}_{time.monotonic_ns() % 10**6}"
+    cmd = [sys.executable, __file__, "--pingpong-side"]
+    echo = subprocess.Popen([*cmd, "echo", tag, str(n)], env=env, stdout=subprocess.DEVNULL)
+    try:
+        out = subprocess.run([*cmd, "ping", tag, str(n)], env=env, capture_output=True, text=True, timeout=120)
+    finally:
+        try:
+            echo.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            echo.kill()
+            echo.wait()
+    if out.returncode:
+        raise RuntimeError(f"ping-pong failed: {out.stderr.strip()[-300:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])["round_trips_per_s"]
+
+
+# -- amb-rig runs -------------------------------------------------------------------------------------
+def rig(args: list[str], timeout: float = 600.0) -> dict:
+    out = subprocess.run([str(BIN / "amb-rig"), "run", "--json", *args], env=_env(), capture_output=True, text=True,
+                         timeout=timeout)  # fmt: skip
+    try:
+        summary = json.loads(out.stdout)
+    except json.JSONDecodeError:
+        raise RuntimeError(f"amb-rig {' '.join(args)} failed: {out.stderr.strip()[-500:]}") from None
+    if not summary["ok"]:
+        raise RuntimeError(f"amb-rig {' '.join(args)}: {summary['errors']}")
+    return summary
+
+
+def lockstep(duration: float) -> dict:
+    s = rig(["--duration", str(duration), "--set", "controller.current_limit=1e9"])
+    return {"steps": s["steps"], "steps_per_s": s["steps_per_s"], "wall_s": s["wall_s"]}
+
+
+def realtime_1khz(duration: float = 5.0) -> dict:
+    s = rig(["--mode", "realtime", "--duration", str(duration), "--set", "controller.rate_hz=1000",
+             "--set", "modal_cutoff=800"])  # fmt: skip
+    c = s["nodes"]["controller"]["values"]
+    return {
+        "ticks": int(c["ticks"]),
+        "p50_us": float(c["period error p50 (us)"]),
+        "p99_us": float(c["period error p99 (us)"]),
+        "max_us": float(c["period error max (us)"]),
+        "missed_deadlines": int(c["missed deadlines"]),
+    }
+
+
+def main(duration: float = 2.0, round_trips: int = 5000) -> dict:
+    pp1 = pingpong(round_trips)
+    ls = lockstep(duration)
+    pp2 = pingpong(round_trips)
+    rt = realtime_1khz()
+    base = 0.5 * (pp1 + pp2)
+    result = {
+        "pingpong_round_trips_per_s": base,
+        "pingpong_before_after": [pp1, pp2],
+        "lockstep_steps_per_s": ls["steps_per_s"],
+        "lockstep_steps": ls["steps"],
+        "lockstep_to_pingpong_ratio": ls["steps_per_s"] / base,
+        "lockstep_goal_met": ls["steps_per_s"] >= GOAL_STEPS_PER_S,
+        "realtime_1khz": rt,
+        "realtime_goal_met": rt["p99_us"] < GOAL_P99_US,
+    }
+    rows = [
+        ("bare rclpy ping-pong (round trips/s)", f"{base:,.0f}", f"before {pp1:,.0f}, after {pp2:,.0f}"),
+        ("lockstep, 3 node processes (steps/s)", f"{ls['steps_per_s']:,.0f}",
+         f"goal >= {GOAL_STEPS_PER_S:,.0f}; {ls['steps']} steps in {ls['wall_s']:.2f} s"),
+        ("lockstep / ping-pong", f"{result['lockstep_to_pingpong_ratio']:.2f}", "1.0 = the DDS round-trip limit"),
+        ("realtime 1 kHz period error p50/p99/max (us)", f"{rt['p50_us']:.0f}/{rt['p99_us']:.0f}/{rt['max_us']:.0f}",
+         f"goal p99 < {GOAL_P99_US:.0f}; {rt['missed_deadlines']} missed deadlines in {rt['ticks']} ticks"),
+    ]  # fmt: skip
+    width = max(len(r[0]) for r in rows)
+    print("bench_lockstep")
+    for name, value, note in rows:
+        print(f"  {name:<{width}}  {value:>12}  {note}")
+    return result
+
+
+if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "--pingpong-side":
+        _pingpong_side(sys.argv[2], sys.argv[3], int(sys.argv[4]))
+        sys.exit(0)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--duration", type=float, default=2.0, help="simulated seconds of the lockstep run")
+    ap.add_argument("--round-trips", type=int, default=5000)
+    ns = ap.parse_args()
+    main(ns.duration, ns.round_trips)
