@@ -30,6 +30,7 @@ from .summary import build_summary, format_summary
 from .supervisor import Supervisor, describe_exit
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
+PEER_DEATH_GRACE_S = 4.0  # > the plant's default command_timeout_s (2 s)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -111,8 +112,7 @@ def run(args, cfg) -> int:
     try:
         for spec in specs:
             child = sup.start(spec)
-            if not args.json:
-                print(f"amb-rig: started {spec.name} (pid {child.pid}), log {child.log}", flush=True)
+            print(f"amb-rig: started {spec.name} (pid {child.pid}), log {child.log}", file=sys.stderr, flush=True)
         if not errors:
             errors += wait_run(args, sup, collector, interrupted)
     finally:
@@ -175,9 +175,15 @@ def wait_run(args, sup: Supervisor, collector, interrupted) -> list[str]:
         time.sleep(0.05)
     run_start = time.monotonic()
     limit = args.timeout if args.timeout else default_timeout(args)
+    grace_end = None
     while interrupted.signum is None:
-        if sup.died_early() or (plant is not None and plant.poll() is not None):
+        if plant is not None and plant.poll() is not None:
             break
+        if sup.died_early():
+            # a peer died: give the plant time to notice (command timeout) and report it before stopping it
+            grace_end = grace_end or time.monotonic() + (PEER_DEATH_GRACE_S if plant is not None else 0.0)
+            if time.monotonic() >= grace_end:
+                break
         if (plant is None or not plant.spec.ends_run) and time.monotonic() - run_start >= args.duration:
             break  # realtime or --no-plant: amb-rig ends the run after --duration of wall time
         if time.monotonic() - run_start > limit:

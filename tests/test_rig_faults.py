@@ -1,0 +1,110 @@
+"""Faults: the controller killed mid-run (lockstep and realtime), and nodes given bad parameters.
+
+- lockstep: the plant waits command_timeout_s (2 s) for the missing command, reports it in its final
+  /diagnostics (ERROR) and exits 3; amb-rig exits 1 naming the plant's reason and the killed controller, and no
+  process of the run is left;
+- realtime: the plant applies its command policy (hold the last command hold_samples samples, then zero
+  current) and reports it; amb-rig notices the dead controller and exits 1;
+- bad parameters: a negative rate, an unknown motion kind, an undeclared parameter -> exit 2, one line.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import time
+
+import pytest
+from test_rig_lockstep import rig_json
+
+from amb_bringup.supervisor import alive
+from procs import spawn
+
+pytestmark = pytest.mark.ros
+
+
+def started_pids(text: str) -> dict[str, int]:
+    return {name: int(pid) for name, pid in re.findall(r"started (\w+) \(pid (\d+)\)", text)}
+
+
+def kill_controller_mid_run(tmp_path, venv_bin, args, settle_s: float):
+    log = tmp_path / "rig.log"
+    cmd = [str(venv_bin / "amb-rig"), "run", "--log-dir", str(tmp_path / "logs"), *args]
+    with spawn(cmd, log) as proc:
+        assert proc.wait_for("started plant", 60), proc.text()
+        time.sleep(settle_s)
+        pids = started_pids(proc.text())
+        assert proc.popen.poll() is None, proc.text()
+        os.kill(pids["controller"], signal.SIGKILL)
+        code = proc.wait(60)
+        text = proc.text()
+    return code, text, pids
+
+
+def wait_gone(pids, timeout=10.0) -> list[int]:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and any(alive(p) for p in pids):
+        time.sleep(0.05)
+    return [p for p in pids if alive(p)]
+
+
+def test_killed_controller_in_lockstep_fails_the_run_cleanly(tmp_path, venv_bin):
+    code, text, pids = kill_controller_mid_run(
+        tmp_path, venv_bin, ["--duration", "100", "--initial-displacement", "1e-4"], settle_s=4.0
+    )
+    assert code == 1, text
+    assert "FAILED" in text
+    assert re.search(r"plant did not finish \(exit code 3\): no command on /amb/current \(controller gone\?\) "
+                     r"for step \d+", text), text  # fmt: skip
+    assert "controller exited unexpectedly (killed by SIGKILL)" in text
+    steps = int(re.search(r"steps (\d+)", text).group(1))
+    assert steps > 0  # it was running when the controller died
+    assert wait_gone(pids.values()) == []
+
+
+def test_killed_controller_in_realtime_applies_the_command_policy(tmp_path, venv_bin):
+    args = ["--mode", "realtime", "--duration", "30", "--motion", "none", "--json",
+            "--set", "controller.rate_hz=1000", "--set", "modal_cutoff=800"]  # fmt: skip
+    log = tmp_path / "rig.log"
+    cmd = [str(venv_bin / "amb-rig"), "run", "--log-dir", str(tmp_path / "logs"), *args]
+    with spawn(cmd, log) as proc:
+        assert proc.wait_for("started plant", 60), proc.text()
+        time.sleep(5.0)
+        pids = started_pids(proc.text())
+        assert proc.popen.poll() is None, proc.text()
+        os.kill(pids["controller"], signal.SIGKILL)
+        code = proc.wait(60)
+        s = rig_json(proc.text())
+    assert code == 1
+    plant = s["nodes"]["plant"]
+    assert plant["level"] == "ERROR"
+    # (a loaded machine may also delay the stream past the hold window before the kill: count >= 1)
+    assert re.match(r"commands stopped \d+ time\(s\): held 10 samples, then zero current", plant["message"])
+    # after the kill amb-rig lets the plant run PEER_DEATH_GRACE_S (4 s) at zero current before stopping it
+    assert int(plant["values"]["zero current (samples)"]) > 2000
+    assert plant["values"]["command state"] == "zeroed"
+    assert any("controller exited unexpectedly (killed by SIGKILL)" in e for e in s["errors"])
+    assert wait_gone(pids.values()) == []
+
+
+@pytest.mark.parametrize(
+    ("exe", "params", "needle"),
+    [
+        ("amb-plant", ["rate_hz:=-5.0"], "parameter 'rate_hz' = -5.0 is out of range [1, 1e+06] Hz"),
+        ("amb-controller", ["rate_hz:=-1000"], "parameter 'rate_hz' = -1000 is out of range"),
+        ("amb-base-motion", ["kind:=wobble"], "parameter 'kind' = 'wobble' is not one of none, roll, pitch, yaw"),
+        ("amb-controller", ["rat_hz:=5000.0"], "unknown parameter 'rat_hz'"),
+        ("amb-plant", ["set:=[controller.rate_hz=abc]"], "'controller.rate_hz' must be a number (got 'abc')"),
+    ],
+)
+def test_bad_parameters_exit_with_one_line(tmp_path, venv_bin, exe, params, needle):
+    cmd = [str(venv_bin / exe), "--ros-args", *[a for p in params for a in ("-p", p)]]
+    with spawn(cmd, tmp_path / "node.log") as proc:
+        code = proc.wait(60)
+        text = proc.text()
+    assert code == 2, text
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    assert len(lines) == 1, text
+    assert needle in lines[0]
+    assert "Traceback" not in text
