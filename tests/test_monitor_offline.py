@@ -106,7 +106,7 @@ def test_pipeline_equals_the_estimator_on_the_same_samples(run_data):
     """Period found from the base rates (snapped to 718 samples) + buffering = the estimator run directly."""
     run, model = run_data["run"], run_data["model"]
     groups = tuple([0] * model.n + [1] * model.n)
-    pipe = MonitorPipeline(MonitorSettings(), groups)
+    pipe = MonitorPipeline(MonitorSettings(base_forcing=True), groups)  # forcing model from /base/imu
     got = []
     for k, t in enumerate(run.t):
         got += pipe.on_imu(t, run_data["Omega"][k])
@@ -139,7 +139,7 @@ def test_analyze_bag_json_and_plot(bag, run_data, venv_bin, tmp_path):
     assert res.returncode == 0, res.stderr
     doc = json.loads(res.stdout)
     T = run_data["T"]
-    assert doc["period_s"] == pytest.approx(T, rel=1e-12) and doc["forcing"] == "alternating"
+    assert doc["period_s"] == pytest.approx(T, rel=1e-12) and doc["forcing"] == "none"  # seed config: no base_forcing
     assert doc["verdict"] == "unstable" and doc["flag_time_s"] <= 8 * T
     assert doc["final"]["rho"] == pytest.approx(run_data["rho"], abs=1e-6)
     assert doc["model"]["rho"] == pytest.approx(run_data["rho"], abs=1e-9)  # motion read back from /base/imu

@@ -1,13 +1,14 @@
 """The stability monitor over DDS, beside a lockstep ``amb-rig`` run (separate processes, localhost only).
 
-The monitor runs with its defaults (base period found from /base/imu, noise level estimated) and is started
-before the rig.  The current limit and the plant's displacement stop are lifted so that the loop stays the linear
-one whose multipliers are the truth.
+The monitor runs with its defaults (base period found from /base/imu, noise level estimated, forcing model
+'none' as the seed config has no base forcing) and is started before the rig.  The plant starts from the paper's
+1 mm disk displacement; the current limit and the plant's displacement stop are lifted so that the loop stays the
+linear one whose multipliers are the truth.
 
 - unstable: pitch 0.6 rad, T = pi/omega = 718 Ts (rho = 1.0617), sensor-only input (/amb/displacement, which
   the plant counts: min_subscribers = 2 makes it wait for the monitor, so the monitor sees the first sample):
   /stability/unstable must become True within DETECT_PERIODS periods of simulated time (offline, the same
-  deterministic run flags at 5.1 periods), and the final estimate must equal the sampled-data model rho;
+  deterministic run flags at 6.6 periods), and the final estimate must equal the sampled-data model rho;
 - stable: pitch 0.3 rad, T = 641 Ts (rho = 0.99879), full-state input (/amb_plant/state): the flag stays False
   for the whole run.  (The plant does not wait for /amb_plant/state readers, so the monitor may join late here;
   that only delays its first estimate.)
@@ -26,7 +27,9 @@ pytestmark = pytest.mark.ros
 
 DETECT_PERIODS = 8  # documented detection latency (periods T of A(t))
 TS = 2e-4  # the seed config's 5 kHz loop
-LINEAR = ["--set", "controller.current_limit=1e9", "--param", "plant:max_displacement_ratio=1e9"]
+# the paper's 1 mm disk displacement; no current limit and no displacement stop: the linear loop of the model
+START = ["--param", "plant:initial_displacement=1e-3", "--set", "controller.current_limit=1e9",
+         "--param", "plant:max_displacement_ratio=1e9"]  # fmt: skip
 
 
 @pytest.fixture
@@ -75,7 +78,7 @@ def run_case(listener, venv_bin, tmp_path, amplitude, N, periods, sensor_only):
     monitor_cmd = [str(venv_bin / "amb-monitor"), "--ros-args", "-p", "diagnostics_period_s:=0.2"]
     rig_cmd = [str(venv_bin / "amb-rig"), "run", "--duration", repr(periods * T), "--motion", "pitch",
                "--amplitude", repr(amplitude), "--frequency", repr(omega), "--log-dir", str(tmp_path / "rig"),
-               *LINEAR]  # fmt: skip
+               *START]  # fmt: skip
     if sensor_only:
         monitor_cmd += ["-p", "input:=displacement"]
         rig_cmd += ["--param", "plant:min_subscribers=2"]

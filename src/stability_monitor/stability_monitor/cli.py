@@ -40,7 +40,9 @@ def analyze_parser() -> argparse.ArgumentParser:
     p.add_argument("--confidence-z", type=float, default=3.0)
     p.add_argument("--confirm", type=int, default=2)
     p.add_argument("--top", type=int, default=6, help="multipliers listed per estimate")
-    p.add_argument("--config", help="rotor config of the run, for the model value (default: the seed rotor)")
+    p.add_argument(
+        "--config", help="rotor config of the run: base_forcing and the model value (default: the seed rotor)"
+    )
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override")
     p.add_argument("--no-model", action="store_true", help="skip the model value")
     return p
@@ -53,8 +55,12 @@ def analyze(argv: list[str]) -> int:
     for name in ("phases", "window", "updates_per_period", "top"):
         if getattr(args, name) < 1:
             raise AmbError(f"--{name.replace('_', '-')} must be >= 1")
+    from amb_dynamics.config import load_config
+
+    base_forcing = load_config(args.config, args.set).base_forcing
     settings = MonitorSettings(
         sensor_only=args.sensor_only,
+        base_forcing=base_forcing,
         period=args.period,
         forcing=args.forcing,
         phases=args.phases,

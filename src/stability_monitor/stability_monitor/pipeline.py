@@ -30,8 +30,12 @@ class MonitorSettings:
     period : float
         Period of A(t) (s); 0 = estimate it from the base rates (/base/imu).
     forcing : str
-        'auto' (from the base rates; with a fixed period: 'two_periods', any forcing that repeats every two
-        periods, which covers constant and alternating), or 'none', 'constant', 'alternating'.
+        'auto': 'none' if ``base_forcing`` is off, else from the base rates (with a fixed period:
+        'two_periods', any forcing that repeats every two periods, which covers constant and alternating);
+        or 'none', 'constant', 'alternating', 'two_periods'.
+    base_forcing : bool
+        Whether the loop carries the inertial load of the base motion (the rotor config's ``base_forcing``; a
+        real rig always does).
     noise_std : float
         Measurement-noise std of every channel (signal units); < 0 = estimate it from the data.
     static_wait : float
@@ -42,6 +46,7 @@ class MonitorSettings:
     sensor_only: bool = False
     period: float = 0.0
     forcing: str = "auto"
+    base_forcing: bool = True
     phases: int = 32
     window: int = 16
     updates_per_period: int = 8
@@ -141,7 +146,9 @@ class MonitorPipeline:
         return self._start(pe)
 
     def _start(self, pe: PeriodEstimate) -> list[Estimate]:
-        forcing = pe.forcing if self.s.forcing == "auto" else self.s.forcing
+        forcing = self.s.forcing
+        if forcing == "auto":
+            forcing = pe.forcing if self.s.base_forcing else "none"
         self.period_estimate = pe
         self._imu_t, self._imu_w = [], []
         cfg = EstimatorConfig(
