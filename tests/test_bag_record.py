@@ -27,7 +27,7 @@ from amb_bag import cli
 from amb_bag.loss import CUSTOM_KEY
 from amb_bag.metadata import custom_json, load_metadata
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
 PUBLISHER = Path(__file__).parent / "bagtools" / "publisher.py"
 STEPS = 1000
 RUN_TIMEOUT_S = 90
