@@ -26,8 +26,8 @@ def test_realtime_1khz_reports_sane_jitter_and_deadlines(tmp_path, venv_bin):
     plant = s["nodes"]["plant"]["values"]
     assert ctl["mode"] == "realtime" and ctl["rate (Hz)"] == "1000"
     ticks = int(ctl["ticks"])
-    # about one update per millisecond over the run (amb-rig stops the nodes DURATION_S after the plant starts)
-    assert 0.8 * DURATION_S * RATE_HZ <= ticks <= 1.1 * DURATION_S * RATE_HZ
+    # about one update per millisecond over the run (amb-rig stops the nodes DURATION_S after it sees the plant run)
+    assert 0.8 * DURATION_S * RATE_HZ <= ticks <= 1.6 * DURATION_S * RATE_HZ  # start-up detection adds <= 0.5 s
     assert abs(int(plant["received /amb/current"]) - int(ctl["published /amb/current"])) <= 0.02 * ticks
     p50, p99, pmax = (float(ctl[f"period error {q} (us)"]) for q in ("p50", "p99", "max"))
     assert 0.0 <= p50 <= p99 <= pmax

@@ -277,10 +277,13 @@ class PlantNode(RigNode):
         ratio = float(self.peak.max()) / self.air_gap
         if self.failure:
             return ERROR, self.failure
-        if self.policy.zeroed:
+        if self.policy.state == "zeroed":  # commands have stopped (and not come back)
             return ERROR, (f"commands stopped {self.policy.losses} time(s): held {self.p['hold_samples']} samples, "
                            f"then zero current for {self.policy.zeroed} samples")  # fmt: skip
         notes = []
+        if self.policy.losses:
+            notes.append(f"commands stopped {self.policy.losses} time(s) and came back ({self.policy.zeroed} samples "
+                         "at zero current)")  # fmt: skip
         if self.policy.held:
             notes.append(f"stale command held for {self.policy.held} samples")
         if ratio > 1.0:
