@@ -36,7 +36,7 @@ class DdsRecorder:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
 
-        from amb_ros.qos import lockstep_qos
+        from amb_ros.qos import diagnostics_qos, lockstep_qos
 
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx)
@@ -44,7 +44,8 @@ class DdsRecorder:
         self.messages: dict[str, list] = {t: [] for t in topics}
         qos = qos if qos is not None else lockstep_qos(100000)
         for topic, msg_type in topics.items():
-            self.node.create_subscription(msg_type, topic, self.messages[topic].append, qos)
+            q = diagnostics_qos() if topic == "/diagnostics" else qos
+            self.node.create_subscription(msg_type, topic, self.messages[topic].append, q)
         self.executor = SingleThreadedExecutor(context=self.ctx)
         self.executor.add_node(self.node)
         self._stop = threading.Event()
