@@ -108,3 +108,23 @@ def test_bad_parameters_exit_with_one_line(tmp_path, venv_bin, exe, params, need
     assert len(lines) == 1, text
     assert needle in lines[0]
     assert "Traceback" not in text
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
+def test_interrupted_amb_rig_leaves_no_process(tmp_path, venv_bin, sig):
+    """SIGINT/SIGTERM: amb-rig stops its nodes cleanly and exits 128+sig; SIGKILL: PR_SET_PDEATHSIG ends them."""
+    log = tmp_path / "rig.log"
+    cmd = [str(venv_bin / "amb-rig"), "run", "--duration", "100", "--log-dir", str(tmp_path / "logs")]
+    with spawn(cmd, log) as proc:
+        assert proc.wait_for("started plant", 60), proc.text()
+        time.sleep(8.0)  # well into the run (start-up takes 2-4 s on a loaded machine)
+        pids = started_pids(proc.text())
+        assert len(pids) == 3 and all(alive(p) for p in pids.values())
+        proc.popen.send_signal(sig)
+        code = proc.wait(60)
+        text = proc.text()
+    assert code == (-sig if sig == signal.SIGKILL else 128 + sig), text
+    assert wait_gone(pids.values()) == [], text
+    if sig != signal.SIGKILL:  # the summary is still printed, with every node's final report
+        assert "[INTERRUPTED]" in text
+        assert re.search(r"plant +(OK|WARN) +exit code 0 +running: \d+ steps", text), text

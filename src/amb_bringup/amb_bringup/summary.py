@@ -55,7 +55,8 @@ def build_summary(run: dict, children: list[Child], collector, errors: list[str]
 def format_summary(s: dict) -> str:
     lines = []
     head = f"amb-rig run: {s.get('mode')}, {s.get('motion')}, {s.get('duration_s')} s at {s.get('rate_hz'):g} Hz"
-    lines.append(f"{head}  [{'OK' if s['ok'] else 'FAILED'}]")
+    verdict = "INTERRUPTED" if s.get("interrupted") else ("OK" if s["ok"] else "FAILED")
+    lines.append(f"{head}  [{verdict}]")
     if "steps" in s:
         lines.append(
             f"  steps {s['steps']}   simulated {s.get('simulated_s') or 0:.6g} s   wall {s.get('wall_s') or 0:.3f} s"
