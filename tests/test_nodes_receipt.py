@@ -92,7 +92,10 @@ def test_controller_rejects_bad_samples_over_dds(tmp_path, venv_bin):
                 joint_state(CHANNELS, y0, 123),  # not on the 200 us grid of 5 kHz
             ]:
                 pub.publish(msg)
-            time.sleep(2.0)
+            end = time.monotonic() + 20  # the first delivery may wait for a reliable-protocol repair
+            while not rec.messages["/amb/current"] and time.monotonic() < end:
+                time.sleep(0.05)
+            time.sleep(1.0)
             assert ctl.stop() == 0, ctl.text()
         time.sleep(0.5)
     finally:
