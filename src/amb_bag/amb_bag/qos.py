@@ -22,7 +22,7 @@ DURABILITY = {0: "system_default", 1: "transient_local", 2: "volatile", 3: "unkn
 LIVELINESS = {0: "system_default", 1: "automatic", 3: "manual_by_topic", 4: "unknown", 5: "best_available"}
 NS_PER_S = 1_000_000_000
 PLAY_DEPTH = 1000  # history depth of the player's publishers: deep enough that a replay drops nothing
-RECORD_DEPTH = 1000  # history depth of the recorder's KEEP_LAST subscriptions when --qos-depth is given
+RECORD_DEPTH = 1000  # depth given with the recorder's KEEP_ALL subscriptions (as the benchmark's bare subscriber)
 
 
 def _duration(ns: int) -> dict:

@@ -37,7 +37,7 @@ from pathlib import Path
 from . import msgdefs
 from .errors import BagError
 from .loss import DIAGNOSTICS_TOPIC, RECORDER_NAME, LossTracker, custom_data, format_table
-from .qos import profile_to_dict, request_for_offers
+from .qos import RECORD_DEPTH, profile_to_dict, request_for_offers
 from .writer import DEFAULT_CHUNK_SIZE, BagWriter
 
 DRAIN_BATCH = 2000  # messages taken from one subscription before the others get a turn
@@ -143,7 +143,9 @@ class Recorder:
         self.log(f"{PREFIX} subscribed {topic} [{type_name}]", flush=True)
 
     def _create(self, sub: _Sub) -> None:
-        qos = request_for_offers(sub.offers, keep_all=self.opts.qos_depth is None, depth=self.opts.qos_depth or 1)
+        qos = request_for_offers(
+            sub.offers, keep_all=self.opts.qos_depth is None, depth=self.opts.qos_depth or RECORD_DEPTH
+        )
         sub.rel_dur = (qos.reliability, qos.durability)
         sub.handle_owner = self.node.create_subscription(sub.cls, sub.topic, _ignore_message, qos, raw=True)
         sub.handle = sub.handle_owner.handle
