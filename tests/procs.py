@@ -43,7 +43,8 @@ class Proc:
                 self.stop()
 
     def text(self) -> str:
-        self._fh.flush()
+        if not self._fh.closed:
+            self._fh.flush()
         return self.log.read_text(errors="replace")
 
     def wait_for(self, needle: str, timeout: float) -> bool:
