@@ -28,7 +28,9 @@ def test_realtime_1khz_reports_sane_jitter_and_deadlines(tmp_path, venv_bin):
     ticks = int(ctl["ticks"])
     # about one update per millisecond over the run (amb-rig stops the nodes DURATION_S after it sees the plant run)
     assert 0.8 * DURATION_S * RATE_HZ <= ticks <= 1.6 * DURATION_S * RATE_HZ  # start-up detection adds <= 0.5 s
-    assert abs(int(plant["received /amb/current"]) - int(ctl["published /amb/current"])) <= 0.02 * ticks
+    # best-effort realtime topics: a few messages may drop, and the counts are taken at slightly different stops
+    assert abs(int(plant["received /amb/current"]) - int(ctl["published /amb/current"])) <= 0.1 * ticks
+    assert abs(int(ctl["received /amb/displacement"]) - int(plant["published /amb/displacement"])) <= 0.1 * ticks
     p50, p99, pmax = (float(ctl[f"period error {q} (us)"]) for q in ("p50", "p99", "max"))
     assert 0.0 <= p50 <= p99 <= pmax
     assert p50 < 250.0  # a quarter period
