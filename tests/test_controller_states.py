@@ -67,5 +67,5 @@ def test_filtered_derivative_tends_to_ideal():
         lam = np.linalg.eigvals(closed_loop(build_structure(cfg), cfg).A0)
         lam = lam[np.argsort(np.abs(lam))][: ideal.size]  # drop the 4 fast filter poles near -2 pi hz
         errs.append(matched_error(ideal, lam))
-    assert errs[0] / errs[1] == pytest.approx(10.0, rel=0.3)   # first order in 1/wf
+    assert errs[0] / errs[1] == pytest.approx(10.0, rel=0.3)  # first order in 1/wf
     assert errs[1] < 2e-3

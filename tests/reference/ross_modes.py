@@ -19,11 +19,16 @@ def main(speeds_rpm):
     import ross as rs
 
     steel = rs.Material(name="amb_rig_steel", rho=7810.0, E=211e9, G_s=81.2e9)
-    shaft = [rs.ShaftElement(L=0.25, idl=0.0, odl=0.03, material=steel, shear_effects=False, rotary_inertia=True,
-                             gyroscopic=True) for _ in range(6)]
+    shaft = [
+        rs.ShaftElement(
+            L=0.25, idl=0.0, odl=0.03, material=steel, shear_effects=False, rotary_inertia=True, gyroscopic=True
+        )
+        for _ in range(6)
+    ]
     disk = rs.DiskElement.from_geometry(n=6, material=steel, width=0.07, i_d=0.0, o_d=0.5)
-    bearings = [rs.BearingElement(n=n, kxx=1.388e6, kyy=1.388e6, cxx=2000.0, cyy=2000.0, frequency=None)
-                for n in (0, 4)]
+    bearings = [
+        rs.BearingElement(n=n, kxx=1.388e6, kyy=1.388e6, cxx=2000.0, cyy=2000.0, frequency=None) for n in (0, 4)
+    ]
     rotor = rs.Rotor(shaft, [disk], bearings)
     out = {}
     for rpm in speeds_rpm:
@@ -36,7 +41,7 @@ def main(speeds_rpm):
 
 
 if __name__ == "__main__":
-    with contextlib.redirect_stdout(sys.stderr):   # ROSS prints CoolProp/REFPROP notices on import
+    with contextlib.redirect_stdout(sys.stderr):  # ROSS prints CoolProp/REFPROP notices on import
         result = main([float(a) for a in sys.argv[2:]] or [0.0, 1000.0])
     with open(sys.argv[1], "w") as fh:
         json.dump(result, fh)
