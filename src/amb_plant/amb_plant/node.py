@@ -271,6 +271,10 @@ class PlantNode(RigNode):
         self.diag.publish_final(level, message, self.values())
         if code:
             print(f"amb_plant: {self.failure}", file=sys.stderr)
+        else:
+            v = self.values()
+            print(f"amb_plant: {v['state']}: {self.steps} steps, {v['wall time (s)']} s wall, {v['steps per second']} "
+                  "steps/s", flush=True)  # fmt: skip
         return code
 
     def status(self) -> tuple[bytes, str]:
