@@ -188,3 +188,15 @@ def test_bad_bags_fail_with_one_line(make, message, run_data, venv_bin, tmp_path
 def test_bad_options(venv_bin, bag):
     res = monitor(venv_bin, "analyze", bag, "--window", "0")
     assert res.returncode != 0 and "Traceback" not in res.stderr
+
+
+def test_multiplier_message_layout():
+    from stability_monitor.messages import multipliers_from_message, multipliers_message
+
+    mu = np.array([1.05 * np.exp(0.3j), 1.05 * np.exp(-0.3j), 0.5])
+    msg = multipliers_message(mu, 2)
+    assert [d.size for d in msg.layout.dim] == [2, 2] and [d.stride for d in msg.layout.dim] == [4, 2]
+    assert list(msg.data) == [mu[0].real, mu[0].imag, mu[1].real, mu[1].imag]
+    assert np.array_equal(multipliers_from_message(msg), mu[:2])
+    empty = multipliers_message([], 8)
+    assert empty.layout.dim[0].size == 0 and len(empty.data) == 0

@@ -64,6 +64,7 @@ def listener():
         return pred()
 
     rec["spin_until"] = spin_until
+    rec["node"] = node
     try:
         yield rec
     finally:
@@ -114,3 +115,46 @@ def test_stable_run_never_raises_the_flag(listener, venv_bin, tmp_path):
     assert listener["flags"] and not any(listener["flags"])
     assert diag["verdict"] in ("stable", "marginal") and diag["unstable"] == "false"
     assert float(diag["rho"]) == pytest.approx(0.9987913219, abs=0.01)
+
+
+@pytest.mark.parametrize(
+    ("param", "message"),
+    [
+        ("input:=pressure", "'input' = 'pressure' is not one of"),
+        ("period_s:=-1.0", "'period_s' = -1.0 is out of range"),
+        ("phases:=0", "'phases' = 0 is out of range"),
+        ("forcing:=sometimes", "'forcing' = 'sometimes' is not one of"),
+        ("typo_param:=1", "unknown parameter 'typo_param'"),
+    ],
+)
+def test_bad_parameters_exit_with_one_line(param, message, venv_bin, tmp_path):
+    with spawn([str(venv_bin / "amb-monitor"), "--ros-args", "-p", param], tmp_path / "monitor.log") as mon:
+        rc = mon.wait(timeout=60)
+        text = mon.text().strip()
+    assert rc == 2 and message in text
+    assert "Traceback" not in text and len(text.splitlines()) == 1
+
+
+def test_non_finite_samples_are_rejected(listener, venv_bin, tmp_path):
+    """A NaN state never reaches the estimator: counted as rejected, reported in the diagnostics."""
+    from rclpy.node import Node
+    from sensor_msgs.msg import JointState
+
+    from amb_ros.qos import lockstep_qos
+
+    node: Node = listener["node"]
+    pub = node.create_publisher(JointState, "/amb_plant/state", lockstep_qos())
+    with spawn([str(venv_bin / "amb-monitor"), "--ros-args", "-p", "diagnostics_period_s:=0.2"],
+               tmp_path / "monitor.log") as mon:  # fmt: skip
+        assert listener["spin_until"](lambda: listener["diag"] and pub.get_subscription_count() > 0, 30), mon.text()
+        for k in range(5):
+            msg = JointState(name=["mode1", "mode2"], position=[0.0, float("nan")], velocity=[0.0, 0.0])
+            msg.header.stamp.nanosec = k * 200_000
+            pub.publish(msg)
+
+        def rejected():
+            return listener["diag"][-1].get("rejected /amb_plant/state") == "5"
+
+        assert listener["spin_until"](rejected, 30), listener["diag"][-1]
+        assert "samples" not in listener["diag"][-1] or listener["diag"][-1]["samples"] == "0"
+        assert "non-finite" in listener["diag"][-1]["last rejection"]

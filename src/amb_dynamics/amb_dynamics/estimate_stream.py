@@ -61,6 +61,7 @@ class EstimatorConfig:
     max_rank: int = 12
     noise_std: float | tuple[float, ...] | None = None
     scale_groups: tuple[int, ...] | None = None
+    adaptive_start: bool = True
     policy: VerdictPolicy = field(default_factory=VerdictPolicy)
 
     def __post_init__(self):
@@ -236,6 +237,15 @@ class StreamingEstimator:
         if noise is not None and not noise.any():
             row_noise = None  # noise-free whole-sample snapshots: round-off floor only
         fit = fit_period_map(Z, self.cfg.forcing, row_noise, self.cfg.method, self.cfg.max_rank)
+        # Modes that decay fast are seen only in the oldest columns; if they leave the model unresolved, a window
+        # that starts later (without them) may resolve what remains: the slow modes that decide stability.
+        drop = 1
+        while self.cfg.adaptive_start and fit.excited and not fit.resolved and Z.shape[1] - drop >= 4:
+            later = fit_period_map(Z[:, drop:], self.cfg.forcing, row_noise, self.cfg.method, self.cfg.max_rank)
+            if later.resolved:
+                fit = later
+                break
+            drop += 1
         verdict = self.flag.update(fit)
         est = Estimate(t, Z.shape[1] - 1, fit, verdict, self.flag.unstable, self.flag.confidence(fit))
         self.latest = est

@@ -38,6 +38,11 @@ class JointStateInput:
                     raise m.Rejected(f"{f} has {len(getattr(msg, f))} values for {len(names)} names")
             self.names = names
             self._decoder = m.joint_state_decoder(names, self.fields)
+            try:
+                return self._decoder(raw)
+            except m.Rejected:
+                self.names = self._decoder = None  # learn the layout from a usable message only
+                raise
         return self._decoder(raw)
 
     def scale_groups(self) -> tuple[int, ...] | None:
