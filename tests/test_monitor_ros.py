@@ -77,9 +77,22 @@ def run_case(listener, venv_bin, tmp_path, amplitude, N, periods, sensor_only):
     T = N * TS
     omega = np.pi / T
     monitor_cmd = [str(venv_bin / "amb-monitor"), "--ros-args", "-p", "diagnostics_period_s:=0.2"]
-    rig_cmd = [str(venv_bin / "amb-rig"), "run", "--duration", repr(periods * T), "--motion", "pitch",
-               "--amplitude", repr(amplitude), "--frequency", repr(omega), "--log-dir", str(tmp_path / "rig"),
-               *START]  # fmt: skip
+    rig_cmd = [
+        str(venv_bin / "amb-rig"),
+        "run",
+        "--duration",
+        repr(periods * T),
+        "--motion",
+        "pitch",
+        "--amplitude",
+        repr(amplitude),
+        "--frequency",
+        repr(omega),
+        "--log-dir",
+        str(tmp_path / "rig"),
+        "--no-monitor",
+        *START,
+    ]  # fmt: skip  (this test runs its own monitor, started first)
     if sensor_only:
         monitor_cmd += ["-p", "input:=displacement"]
         rig_cmd += ["--param", "plant:min_subscribers=2"]

@@ -23,6 +23,7 @@ NODES = {  # name in amb-rig -> (ROS package, ros2 run executable, venv console 
     "base_motion": ("base_motion", "base_motion", "amb-base-motion", "base_motion"),
     "controller": ("amb_controller", "controller", "amb-controller", "amb_controller"),
     "plant": ("amb_plant", "plant", "amb-plant", "amb_plant"),
+    "monitor": ("stability_monitor", "monitor", "amb-monitor", "stability_monitor"),
 }
 
 
@@ -70,14 +71,25 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
     per["plant"]["min_diagnostics_readers"] = 1  # amb-rig's collector: it must hear the plant's final report
     if args.mode == "realtime" and args.rt_priority:
         common["rt_priority"] = int(args.rt_priority)
-    if getattr(args, "bag", None):
-        per["plant"]["min_subscribers"] = 2  # the controller and the recorder: record from the first sample
     for item in args.param:
         node, _, rest = item.partition(":")
         key, sep, raw = rest.partition("=")
         if node not in per or not sep or not key:
             raise ValueError(f"--param {item!r}: expected NODE:NAME=VALUE with NODE one of {', '.join(per)}")
         per[node][key] = yaml.safe_load(raw)
+    # every reader gets every sample from the first: the plant and base_motion wait for them before step 0
+    bag, monitor = int(bool(getattr(args, "bag", None))), int(not getattr(args, "no_monitor", True))
+    if monitor and args.no_plant:
+        per["monitor"].setdefault("input", "displacement")  # a real rig measures the AMB displacements only
+    sensor_only = monitor and per["monitor"].get("input") == "displacement"
+    gates = {
+        ("plant", "min_subscribers"): 1 + bag + sensor_only,  # the controller, the recorder, the monitor
+        ("plant", "min_state_subscribers"): bag + (monitor and not sensor_only),
+        ("base_motion", "min_imu_subscribers"): (0 if args.no_plant else 1) + bag + monitor,
+        ("base_motion", "min_acceleration_subscribers"): (0 if args.no_plant else 1) + bag,
+    }
+    for (node, key), value in gates.items():
+        per[node].setdefault(key, int(value))  # an explicit --param wins
     return common, per
 
 
@@ -110,10 +122,21 @@ def bag_process(args, run_dir: Path) -> ProcessSpec | None:
     exe = str(exe) if exe.is_file() else shutil.which("amb-bag")
     if exe is None:
         raise FileNotFoundError("--bag needs the amb-bag recorder, which is not installed")
-    return ProcessSpec("recorder", [exe, "record", "-o", str(args.bag)], node=None, required=True, stop_tier=1)
+    return ProcessSpec(
+        "recorder", [exe, "record", "-o", str(args.bag)], node="amb_bag_recorder", required=True, stop_tier=2
+    )  # stopped last: it records everyone's final diagnostics
 
 
-EXTRA_PROCESSES: list[Callable[..., ProcessSpec | None]] = [bag_process]
+def monitor_process(args, run_dir: Path) -> ProcessSpec | None:
+    """The stability monitor (unless --no-monitor); its UNSTABLE verdict is a result, not a failed run."""
+    if getattr(args, "no_monitor", True):
+        return None
+    package, ros_exe, script, node = NODES["monitor"]
+    cmd = [resolve_executable(package, ros_exe, script), "--ros-args", "--params-file", str(run_dir / "params.yaml")]
+    return ProcessSpec("monitor", cmd, node=node, required=True, stop_tier=1, verdict_only=True)
+
+
+EXTRA_PROCESSES: list[Callable[..., ProcessSpec | None]] = [bag_process, monitor_process]
 
 
 def all_specs(args, run_dir: Path) -> list[ProcessSpec]:

@@ -49,6 +49,13 @@ def build_summary(run: dict, children: list[Child], collector, errors: list[str]
         stats = {k: _num(ctl, k) for k in keys if k in ctl}
         stats.update({k: _num(ctl, k) for k in ctl if k.startswith(("compute ", "period error "))})
         out["controller"] = stats
+    mon = nodes.get("monitor")
+    if mon:
+        v = mon["values"]
+        out["stability"] = {"verdict": v.get("verdict", "none"), "unstable": v.get("unstable") == "true",
+                            "rho": _num(v, "rho"), "rho_std": _num(v, "rho std"),
+                            "periods_used": _num(v, "periods used"), "flag_raised_at_s": _num(v, "flag raised at (s)"),
+                            "message": mon["message"]}  # fmt: skip
     return out
 
 
@@ -71,6 +78,9 @@ def format_summary(s: dict) -> str:
         c = s["controller"]
         text = ", ".join(f"{k} {v:g}" for k, v in c.items() if v is not None)
         lines.append(f"  controller: {text}")
+    if s.get("stability"):
+        st = s["stability"]
+        lines.append(f"  stability monitor: {'UNSTABLE' if st['unstable'] else st['verdict']} - {st['message']}")
     lines.append("  nodes:")
     for name, n in s["nodes"].items():
         lines.append(f"    {name:<12} {n['level']:<5} {n['exit']:<22} {n['message']}")

@@ -40,6 +40,7 @@ class ProcessSpec:
     required: bool = True
     env: dict[str, str] = field(default_factory=dict)
     stop_tier: int = 0  # stopped after every process of a lower tier has exited
+    verdict_only: bool = False  # its ERROR diagnostic is a finding (the monitor's UNSTABLE), not a failed run
 
 
 def _pdeathsig() -> None:  # runs in the child between fork and exec

@@ -46,12 +46,16 @@ class PlantStepper:
         self.Ap0 = np.zeros((2 * n, 2 * n))
         self.Ap0[:n, n:] = np.eye(n)
         self.Ap0[n:, :n] = -Minv @ Kp
-        self.Ap_terms = []
-        for name, (Kj, Dj) in parametric_matrices(model, cfg).items():
-            if Kj.any() or Dj.any():
-                Aj = np.zeros((2 * n, 2 * n))
-                Aj[n:, :n], Aj[n:, n:] = -Minv @ Kj, -Minv @ Dj
-                self.Ap_terms.append((COEFFICIENTS.index(name), Aj))
+        terms = [
+            (COEFFICIENTS.index(name), Kj, Dj)
+            for name, (Kj, Dj) in parametric_matrices(model, cfg).items()
+            if Kj.any() or Dj.any()
+        ]
+        # A_p(c) = Ap0 + sum_j c[idx_j] Ap_stack[j]: one tensordot per step instead of a Python sum
+        self.Ap_idx = np.array([j for j, _, _ in terms], dtype=int)
+        self.Ap_stack = np.zeros((len(terms), 2 * n, 2 * n))
+        for j, (_, Kj, Dj) in enumerate(terms):
+            self.Ap_stack[j, n:, :n], self.Ap_stack[j, n:, n:] = -Minv @ Kj, -Minv @ Dj
         self.Bp = np.zeros((2 * n, 4))
         self.Bp[n:] = Minv @ model.Ba * model.gains.ki
         self.Bf = np.zeros((2 * n, 4))
@@ -69,7 +73,7 @@ class PlantStepper:
         a = forcing_from_rates(np.asarray(Omega, float), np.asarray(dOmega, float), self.spin)
         n2 = 2 * self.n
         aug = np.zeros((n2 + 5, n2 + 5))
-        aug[:n2, :n2] = self.Ap0 + sum(c[j] * Aj for j, Aj in self.Ap_terms)
+        aug[:n2, :n2] = self.Ap0 + np.tensordot(c[self.Ap_idx], self.Ap_stack, axes=1)
         aug[:n2, n2 : n2 + 4] = self.Bp
         aug[:n2, n2 + 4] = self.Bf @ a
         Phi = sla.expm(self.Ts * aug)

@@ -63,6 +63,8 @@ def specs() -> list[ParamSpec]:
         ParamSpec("start_timeout_s", 30.0, "wall time to wait for controller and base motion to connect", "s",
                   0.1, 3600.0),
         ParamSpec("min_subscribers", 1, "readers of /amb/displacement required before starting", "", 1, 100),
+        ParamSpec("min_state_subscribers", 0, "readers of /amb_plant/state required before starting (amb-rig: "
+                  "recorder and monitor)", "", 0, 100),
         ParamSpec("min_diagnostics_readers", 0, "readers of /diagnostics required before starting (amb-rig: 1)",
                   "", 0, 100),
         ParamSpec("initial_displacement", 0.0, "initial lateral (v) displacement of the disk node", "m", -1.0, 1.0),
@@ -246,6 +248,8 @@ class PlantNode(RigNode):
         for sub in (self.cmd_sub, self.imu_sub, self.acc_sub):
             if self.count_publishers(sub.topic_name) < 1:
                 missing.append(f"publisher of {sub.topic_name}")
+        if self.state_pub.get_subscription_count() < self.p["min_state_subscribers"]:
+            missing.append(f"{self.p['min_state_subscribers']} reader(s) of {m.STATE}")
         if self.diag.pub.get_subscription_count() < self.p["min_diagnostics_readers"]:
             missing.append(f"reader of {m.DIAGNOSTICS}")
         if self.clock_pub is not None and self.clock_pub.get_subscription_count() < 1:

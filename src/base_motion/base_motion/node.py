@@ -51,6 +51,10 @@ def specs() -> list[ParamSpec]:
         ParamSpec("frequency", None, "angular frequency w", "rad/s", 0.0, 1.0e4, config_key="base_motion.frequency"),
         ParamSpec("recorded_file", "", "CSV with columns t, roll, pitch, yaw (kind recorded)"),
         ParamSpec("recorded_smoothing", 0.0, "smoothing-spline lambda for recorded; 0 = automatic (GCV)", lo=0.0),
+        ParamSpec("min_imu_subscribers", 1, "lockstep: readers of /base/imu required before the first sample (amb-rig:"
+                  " plant, recorder, monitor), so that every reader gets every sample", "", 0, 100),
+        ParamSpec("min_acceleration_subscribers", 1, "lockstep: readers of /base/angular_acceleration required "
+                  "before the first sample", "", 0, 100),
         ParamSpec("lead_samples", 200, "lockstep: samples published ahead of the plant's /clock", "samples", 0, 10000),
         ParamSpec("batch_wait_s", 0.002, "lockstep: pause before answering /clock, so that one wake-up answers many "
                   "steps (off the plant's critical path while lead_samples covers it)", "s", 0.0, 1.0),
@@ -112,7 +116,16 @@ class BaseMotionNode(RigNode):
             self.next_k = k
         self.clock_k = k
 
+    def readers_ready(self) -> bool:
+        """Before sample 0: every expected reader is matched (a late recorder would lose the first samples)."""
+        return self.next_k > 0 or (
+            self.imu_pub.get_subscription_count() >= self.p["min_imu_subscribers"]
+            and self.acc_pub.get_subscription_count() >= self.p["min_acceleration_subscribers"]
+        )
+
     def answer_clock(self) -> None:
+        if not self.readers_ready():
+            return
         while self.next_k <= self.clock_k + self.p["lead_samples"]:
             self.publish_sample(self.next_k, self.next_k * self.Ts_ns)
             self.next_k += 1
