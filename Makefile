@@ -10,7 +10,6 @@ REF_VENV := .venv-ref
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 ROS_DOMAIN_ID ?= $(shell $(PYTHON) -c "import random; print(random.randint(10, 99))")
 export ROS_DOMAIN_ID
-export ROS_LOCALHOST_ONLY := 0
 export AMENT_PREFIX_PATH := $(CURDIR)/$(VENV)
 export MPLBACKEND := Agg
 export PYTHONDONTWRITEBYTECODE := 1

@@ -46,7 +46,7 @@ def main() -> None:
         shutil.rmtree(bag)
     step(
         "ROS 2 node suite: base_motion, amb_plant, amb_controller, stability_monitor, recorder (lockstep)",
-        [str(BIN / "amb-rig"), "run", "--duration", "3", *CASE, "--bag", str(bag)],
+        [str(BIN / "amb-rig"), "run", "--duration", "3", *CASE, "--initial-displacement", "1e-3", "--bag", str(bag)],
     )
     step("the recorded bag", [str(BIN / "amb-bag"), "info", str(bag)])
     step("plot of the recorded run", [str(BIN / "amb-bag"), "plot", str(bag), "--out", str(OUT / "demo_run.png")])

@@ -33,8 +33,8 @@ def ensure_localhost_dds(env: dict | None = None) -> dict:
         )
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = LOCALHOST
     env.pop("ROS_STATIC_PEERS", None)
-    if env.get("ROS_LOCALHOST_ONLY", "0") not in ("0", ""):
-        env["ROS_LOCALHOST_ONLY"] = "0"  # deprecated in Jazzy; the range above replaces it
+    # deprecated in Jazzy (rcl warns whenever it is set, even to 0); the range above replaces it
+    env.pop("ROS_LOCALHOST_ONLY", None)
     if not env.get("ROS_DOMAIN_ID"):
         env["ROS_DOMAIN_ID"] = str(reserve_domain_id())
     return env
