@@ -79,8 +79,8 @@ def test_executables_resolve_like_ros2_run(workspace):
 def test_installed_nodes_start(workspace, tmp_path, repo):
     _, env = workspace
     paths = {pkg: resolve(env, pkg, exe)[1] for pkg, exe in EXECUTABLES}
-    # the seed config is given explicitly: amb_dynamics' setup.py does not install data/seed_rotor.yaml (yet)
-    args = ["--ros-args", "-p", f"config_file:={repo / 'config' / 'seed_rotor.yaml'}"]
+    # no config_file: the nodes find the seed rotor installed with amb_dynamics (package data)
+    args = ["--ros-args"]
     for pkg in ("base_motion", "amb_plant", "amb_controller"):
         out = subprocess.run([str(paths[pkg]), *args, "-p", "rate_hz:=-1.0"], env=env, capture_output=True,
                              text=True, timeout=60)  # fmt: skip
