@@ -176,11 +176,17 @@ class MonitorNode(RigNode):
         self.cost.add(time.perf_counter() - t0)
 
     def publish(self, estimates) -> None:
+        # the flag follows each estimate, not the last of a batch (the buffered start refits many at once):
+        # its sequence is then a function of the sample stream only, however the samples arrived
         for est in estimates:
             self.mult_pub.publish(multipliers_message(est.fit.multipliers if est.fit.excited else [],
                                                       self.p["publish_count"]))  # fmt: skip
             self.counters.published[MULTIPLIERS] += 1
-        unstable = bool(self.pipeline.latest.unstable) if self.pipeline.latest else False
+            self.set_flag(bool(est.unstable))
+        if self.pipeline.latest is None:
+            self.set_flag(False)  # a restarted run has no verdict yet
+
+    def set_flag(self, unstable: bool) -> None:
         if unstable != self.flag:
             self.flag = unstable
             self.flag_pub.publish(Bool(data=unstable))

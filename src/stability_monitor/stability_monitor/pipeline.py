@@ -107,7 +107,7 @@ class MonitorPipeline:
         self._imu_w.append(np.asarray(omega, dtype=float).copy())
         self.imu_samples += 1
         if len(self._imu_t) % IMU_TRY_EVERY == 0 and self.sample_time is not None:
-            return self._try_period()
+            return self._try_period(len(self._imu_t))
         return []
 
     def on_sample(self, t: float, values: np.ndarray) -> list[Estimate]:
@@ -129,13 +129,20 @@ class MonitorPipeline:
             self.sample_time = float(np.median(dt))
             if self.s.period > 0:
                 return self._start(PeriodEstimate(self.s.period, self.s.period, "two_periods"))
+            # the attempts skipped while the sample time was unknown (base rates drained ahead of the samples):
+            # the period always comes from the same prefix of the base rates, whatever the arrival batching
+            for count in range(IMU_TRY_EVERY, len(self._imu_t) + 1, IMU_TRY_EVERY):
+                out = self._try_period(count)
+                if self.estimator is not None:
+                    return out
         return []
 
     # ---- period and start ------------------------------------------------------------------------------
-    def _try_period(self) -> list[Estimate]:
-        t = np.asarray(self._imu_t)
+    def _try_period(self, count: int) -> list[Estimate]:
+        """Find the period from the first ``count`` base-rate samples (a multiple of IMU_TRY_EVERY)."""
+        t = np.asarray(self._imu_t[:count])
         try:
-            pe = estimate_base_period(t, np.asarray(self._imu_w), self.sample_time)
+            pe = estimate_base_period(t, np.asarray(self._imu_w[:count]), self.sample_time)
         except InputError as exc:
             self.note = str(exc)
             if "does not rotate" in self.note and t[-1] - t[0] >= self.s.static_wait:
