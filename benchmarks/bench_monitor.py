@@ -236,7 +236,7 @@ def cost_in_node_setting() -> dict:
 def main() -> dict:
     t0 = time.perf_counter()
     det_a, stab_a = Case(*DETECT, base_forcing=True), Case(*STABLE, base_forcing=True)
-    det_b, stab_b = Case(*DETECT), Case(*STABLE)
+    det_b, stab_b, det_b0 = Case(*DETECT), Case(*STABLE), Case(*DETECT, excitation=0.0)
     res = {
         "A_sensor": {"detection": monte_carlo(det_a, 200, 12, "sensor", 1, True),
                      "false_alarms": monte_carlo(stab_a, 100, 50, "sensor", 2, False)},
@@ -244,6 +244,7 @@ def main() -> dict:
                          "false_alarms": monte_carlo(stab_a, 20, 50, "full", 4, False)},
         "B_sensor": {"detection": monte_carlo(det_b, 100, 14, "sensor", 5, True),
                      "false_alarms": monte_carlo(stab_b, 50, 50, "sensor", 6, False)},
+        "B_sensor_no_excitation": {"detection": monte_carlo(det_b0, 100, 14, "sensor", 7, True)},
         "cost": cost_in_node_setting(),
         "lockstep": lockstep_side_by_side(),
     }  # fmt: skip
@@ -254,6 +255,10 @@ def main() -> dict:
            res["A_full_state"]["false_alarms"])  # fmt: skip
     report("(B) seed config (no base forcing), knock at the disk, sensor-only", res["B_sensor"]["detection"],
            res["B_sensor"]["false_alarms"])  # fmt: skip
+    d = res["B_sensor_no_excitation"]["detection"]
+    print(f"    without excitation: within 8 periods in {100 * d['detected_within_8_periods_fraction']:.1f} % of"
+          f" {d['runs']} runs; latency p50 {d['latency_periods_p50']:.2f}, p99 {d['latency_periods_p99']:.2f},"
+          f" max {d['latency_periods_max']:.2f} periods T")  # fmt: skip
     for mode, c in res["cost"].items():
         rows, cols = c["window_shape"]
         print(f"  cost {mode:6s}: refit {c['refit_ms']:.2f} ms on a {rows}x{cols} window;"
