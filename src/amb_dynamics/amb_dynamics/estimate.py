@@ -241,8 +241,10 @@ def _rho_std(A, Xr, Yr, wl, vr, mu0, dof) -> float:
 class VerdictPolicy:
     """When the unstable flag is raised and cleared.
 
-    Raise after ``confirm`` consecutive estimates with rho >= 1 + margin and rho - z*std > 1 (resolved fits
-    only); clear after ``confirm`` consecutive estimates with rho + z*std < 1 + margin - hysteresis.
+    Raise after ``confirm`` consecutive estimates with rho >= 1 + margin and rho - z*std > 1 (with
+    ``require_resolved``, only fits that model every significant direction count: safer, but the Monte Carlo
+    of benchmarks/bench_monitor.py detects 1-3 periods later and shows no false alarm without it); clear after
+    ``confirm`` consecutive estimates with rho + z*std < 1 + margin - hysteresis.
     """
 
     margin: float = 0.02

@@ -49,6 +49,9 @@ class EstimatorConfig:
     scale_groups : sequence of int or None
         Group id per channel; channels of a group share one row scale (their RMS over the window), so that
         e.g. all modal coordinates keep their physical proportions.  None: every channel its own scale.
+    adaptive_start : bool
+        When the window's fit is unresolved, try windows that start later (fast modes seen only in the oldest
+        periods then drop out) and take the first resolved one.
     """
 
     period: float
