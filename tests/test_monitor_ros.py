@@ -5,13 +5,14 @@ The monitor runs with its defaults (base period found from /base/imu, noise leve
 1 mm disk displacement; the current limit and the plant's displacement stop are lifted so that the loop stays the
 linear one whose multipliers are the truth.
 
-- unstable: pitch 0.6 rad, T = pi/omega = 718 Ts (rho = 1.0617), sensor-only input (/amb/displacement, which
-  the plant counts: min_subscribers = 2 makes it wait for the monitor, so the monitor sees the first sample):
+The rig runs with --no-monitor (this test starts its own) and with the plant's and base_motion's reader gates
+raised by one, so that they wait for this monitor before step 0 and it sees every sample.
+
+- unstable: pitch 0.6 rad, T = pi/omega = 718 Ts (rho = 1.0617), sensor-only input (/amb/displacement):
   /stability/unstable must become True within DETECT_PERIODS periods of simulated time (offline, the same
   deterministic run flags at 6.6 periods), and the final estimate must equal the sampled-data model rho;
 - stable: pitch 0.3 rad, T = 641 Ts (rho = 0.99879), full-state input (/amb_plant/state): the flag stays False
-  for the whole run.  (The plant does not wait for /amb_plant/state readers, so the monitor may join late here;
-  that only delays its first estimate.)
+  for the whole run.
 """
 
 from __future__ import annotations
@@ -93,9 +94,13 @@ def run_case(listener, venv_bin, tmp_path, amplitude, N, periods, sensor_only):
         "--no-monitor",
         *START,
     ]  # fmt: skip  (this test runs its own monitor, started first)
+    # the plant and base_motion wait until this monitor reads their topics: it sees every sample from the first
+    rig_cmd += ["--param", "base_motion:min_imu_subscribers=2"]
     if sensor_only:
         monitor_cmd += ["-p", "input:=displacement"]
         rig_cmd += ["--param", "plant:min_subscribers=2"]
+    else:
+        rig_cmd += ["--param", "plant:min_state_subscribers=1"]
     with spawn(monitor_cmd, tmp_path / "monitor.log") as mon:
         assert listener["spin_until"](lambda: listener["diag"] and listener["flags"], 30), mon.text()
         with spawn(rig_cmd, tmp_path / "rig.log") as rig:
@@ -127,6 +132,7 @@ def test_unstable_run_raises_the_flag(listener, venv_bin, tmp_path):
 def test_stable_run_never_raises_the_flag(listener, venv_bin, tmp_path):
     diag, _ = run_case(listener, venv_bin, tmp_path, 0.3, 641, 12, sensor_only=False)
     assert listener["flags"] and not any(listener["flags"])
+    assert diag["samples lost"] == "0" and diag["samples"] == str(12 * 641 + 1), diag
     assert diag["verdict"] in ("stable", "marginal") and diag["unstable"] == "false"
     assert float(diag["rho"]) == pytest.approx(0.9987913219, abs=0.01)
 
