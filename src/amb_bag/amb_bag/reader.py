@@ -16,6 +16,8 @@ from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 from mcap.stream_reader import CRCValidationError
 
+from amb_ros.bagfiles import check_mcap_magic as _check_magic
+
 from .errors import BagError, BagFormatError
 from .metadata import METADATA_FILE, load_metadata
 from .qos import profiles_from_yaml
@@ -52,16 +54,13 @@ def damaged_is_format_error(path: Path, hint: str = "; `amb-bag check` recovers 
 
 
 def check_mcap_magic(path: Path) -> None:
-    """Reject empty and non-MCAP files with a clear line before any parser sees them."""
+    """Reject unreadable, empty and non-MCAP files with a clear line before any parser sees them."""
     try:
-        with open(path, "rb") as f:
-            head = f.read(8)
-    except OSError as exc:
-        raise BagError(f"cannot read {path}: {exc.strerror}") from None
-    if not head:
-        raise BagFormatError(f"{path} is empty")
-    if head != b"\x89MCAP0\r\n":
-        raise BagFormatError(f"{path} is not an MCAP file")
+        _check_magic(path, BagFormatError)
+    except BagFormatError as exc:
+        if str(exc).startswith("cannot read"):
+            raise BagError(str(exc)) from None
+        raise
 
 
 @dataclass

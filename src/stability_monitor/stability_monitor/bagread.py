@@ -15,8 +15,8 @@ from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 
 from amb_dynamics.errors import AmbError
+from amb_ros.bagfiles import check_mcap_magic
 
-MCAP_MAGIC = b"\x89MCAP0\r\n"
 METADATA_FILE = "metadata.yaml"
 READ_ERRORS = (McapError, struct.error, EOFError, UnicodeDecodeError, ValueError, KeyError, IndexError, RuntimeError)
 try:  # zstd-compressed chunks raise their own error type when damaged
@@ -58,15 +58,7 @@ def bag_files(path: Path) -> list[Path]:
 
 
 def _check_magic(path: Path) -> None:
-    try:
-        with open(path, "rb") as f:
-            head = f.read(8)
-    except OSError as exc:
-        raise BagReadError(f"cannot read {path}: {exc.strerror}") from None
-    if not head:
-        raise BagReadError(f"{path} is empty")
-    if head != MCAP_MAGIC:
-        raise BagReadError(f"{path} is not an MCAP file")
+    check_mcap_magic(path, BagReadError)
 
 
 def bag_topics(files: list[Path]) -> dict[str, str]:
