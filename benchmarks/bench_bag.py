@@ -6,15 +6,20 @@
    (reliable, KEEP_ALL, so a lagging recorder slows the publisher instead of losing messages); the rate is
    messages recorded / span of their reception times, and the loss table must be all zeros.
 
-For "lockstep with vs without recording" (the lead's comparison): wrap the lockstep run in
-``amb_bag.launch.RecorderProcess(bag_dir, topics)`` + ``wait_subscribed(topics, timeout)`` ... ``stop()``, and
-run it once without; both runs in the same benchmark invocation.
+3. Recording cost: lockstep steps/s of ``amb-rig run --duration RIG_DURATION --no-monitor`` without and with
+   ``--bag`` (the recorder started by amb-rig, every reader matched before step 0), alternating runs in this
+   invocation (the machine's load drifts); steps/s is the plant's loop rate from ``amb-rig run --json``
+   (``steps_per_s``, start-up excluded).  Cost = median over the back-to-back pairs of 1 - with / without
+   (robust to load drifting between pairs); goal < 20 %.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
+import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -27,6 +32,10 @@ E2E_STEPS = 5_000
 GOAL_MSG_S = 50_000
 ROUNDS = 3  # flood rounds (bimodal DDS delivery: ~10k or ~30-60k msg/s per round, see docs/bags.md)
 PACED_STEPS_S = 4000  # 24,000 msg/s offered: above what the recorder sustains here, so it shows its capacity
+RIG_DURATION = 2.0  # simulated s per lockstep run (10,000 steps at 5 kHz)
+RIG_PAIRS = 3  # alternating runs without / with --bag
+GOAL_COST = 0.20
+BIN = Path(sys.executable).parent
 
 
 def lockstep_mix() -> list[tuple[str, str, bytes]]:
@@ -152,7 +161,6 @@ def bare_sink(expected: int) -> None:
 
 def _sink_baseline(steps: int) -> dict:
     """Messages/s a bare raw subscriber receives from the same flood (measured in the same run)."""
-    import subprocess
 
     expected = steps * len(lockstep_mix())
     sink = subprocess.Popen([sys.executable, __file__, "--sink", str(expected)], stdout=subprocess.PIPE, text=True)
@@ -172,7 +180,6 @@ def _sink_baseline(steps: int) -> dict:
 
 def bench_end_to_end(tmp: Path, steps: int = E2E_STEPS, rate: float = 0.0) -> dict:
     """Recorder process vs a publisher process over DDS (localhost), flat out or paced at ``rate`` steps/s."""
-    import subprocess
 
     from amb_bag.launch import RecorderProcess
     from amb_bag.metadata import load_metadata
@@ -204,6 +211,50 @@ def bench_end_to_end(tmp: Path, steps: int = E2E_STEPS, rate: float = 0.0) -> di
     }
 
 
+def rig_steps_per_s(bag: Path | None) -> dict:
+    """One lockstep ``amb-rig run`` without the monitor, optionally recorded into ``bag``: plant steps/s."""
+    from amb_ros.env import child_env
+
+    cmd = [str(BIN / "amb-rig"), "run", "--json", "--no-monitor", "--duration", str(RIG_DURATION),
+           "--set", "controller.current_limit=1e9"]  # fmt: skip
+    if bag is not None:
+        cmd += ["--bag", str(bag)]
+    out = subprocess.run(cmd, env=child_env(), capture_output=True, text=True, timeout=600)
+    try:
+        summary = json.loads(out.stdout)
+    except json.JSONDecodeError:
+        raise RuntimeError(f"amb-rig failed: {out.stderr.strip()[-500:]}") from None
+    if not summary["ok"]:
+        raise RuntimeError(f"amb-rig: {summary['errors']}")
+    row = {"steps": summary["steps"], "steps_per_s": summary["steps_per_s"]}
+    if bag is not None:
+        rec = summary["nodes"]["recorder"]["values"]
+        row.update(messages=int(rec["messages written"]), lost=int(rec["lost total"]))
+    return row
+
+
+def bench_recording_cost(tmp: Path, pairs: int = RIG_PAIRS) -> dict:
+    """Lockstep steps/s without and with recording, alternating runs in this invocation."""
+    without, with_bag = [], []
+    for i in range(pairs):
+        without.append(rig_steps_per_s(None))
+        with_bag.append(rig_steps_per_s(tmp / f"rig{i}"))
+        shutil.rmtree(tmp / f"rig{i}", ignore_errors=True)
+    pair_costs = [1.0 - b["steps_per_s"] / a["steps_per_s"] for a, b in zip(without, with_bag, strict=True)]
+    cost = statistics.median(pair_costs)
+    return {
+        "steps_per_s_without_bag": statistics.median(r["steps_per_s"] for r in without),
+        "steps_per_s_with_bag": statistics.median(r["steps_per_s"] for r in with_bag),
+        "cost": cost,
+        "pair_costs": pair_costs,
+        "runs_without": [r["steps_per_s"] for r in without],
+        "runs_with": [r["steps_per_s"] for r in with_bag],
+        "messages_per_run": with_bag[0]["messages"],
+        "lost": sum(r["lost"] for r in with_bag),
+        "goal_met": cost < GOAL_COST,
+    }
+
+
 def main() -> dict:
     tmp = Path(tempfile.mkdtemp(prefix="bench_bag_"))
     try:
@@ -220,6 +271,7 @@ def main() -> dict:
         e2e["lost"] = sum(r["lost"] for r in floods)
         e2e["bare_subscriber"] = max(sinks, key=lambda r: r["msg_per_s"])
         paced = bench_end_to_end(tmp, 2 * E2E_STEPS, rate=PACED_STEPS_S)
+        cost = bench_recording_cost(tmp)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     print("recorder throughput, lockstep mix (clock, imu, angular acc., displacement, current, 28-DOF state)")
@@ -235,7 +287,17 @@ def main() -> dict:
     base = e2e["bare_subscriber"]["msg_per_s"]
     print(f"  bare raw subscriber (DDS limit, same flood) {base:10,.0f} msg/s, best of {ROUNDS}")
     print(f"  ratio recorder / bare subscriber: {e2e['msg_per_s'] / base:.2f}")
-    return {"write_path": write, "end_to_end": e2e, "paced": paced}
+    print(f"recording cost, lockstep amb-rig run --duration {RIG_DURATION:g} --no-monitor, {RIG_PAIRS} pairs of "
+          f"back-to-back runs without / with --bag")  # fmt: skip
+    print(f"  without --bag {cost['steps_per_s_without_bag']:8,.0f} steps/s  "
+          f"(runs: {', '.join(f'{x:,.0f}' for x in cost['runs_without'])})")  # fmt: skip
+    print(f"  with --bag    {cost['steps_per_s_with_bag']:8,.0f} steps/s  "
+          f"(runs: {', '.join(f'{x:,.0f}' for x in cost['runs_with'])}; {cost['messages_per_run']:,} messages "
+          f"per bag, lost {cost['lost']})")  # fmt: skip
+    print(f"  cost of recording: {100 * cost['cost']:.1f} % of steps/s, median of the pairs "
+          f"({', '.join(f'{100 * c:.1f} %' for c in cost['pair_costs'])}); goal < {100 * GOAL_COST:.0f} %: "
+          f"{'ok' if cost['goal_met'] else 'MISSED'}")  # fmt: skip
+    return {"write_path": write, "end_to_end": e2e, "paced": paced, "recording_cost": cost}
 
 
 if __name__ == "__main__":
