@@ -126,6 +126,8 @@ def monte_carlo(case: Case, runs: int, periods: int, mode: str, seed: int, detec
         ok = flags <= 8.0
         out.update(
             detected_within_8_periods_fraction=float(ok.mean()),
+            # the issue counts base-motion periods: 2 pi/omega = 2 T for pitch
+            detected_within_8_base_periods_fraction=float((flags <= 16.0).mean()),
             latency_periods_p50=float(np.percentile(flags, 50, method="higher")),
             latency_periods_p99=float(np.percentile(flags, 99, method="higher")),
             latency_periods_max=float(flags.max()),
@@ -215,8 +217,9 @@ def lockstep_side_by_side(repeats: int = 2) -> dict:
 
 def report(title: str, det: dict, fa: dict) -> None:
     print(f"  {title}")
-    print(f"    detection rho = {det['model_rho']:.4f}: within 8 periods in"
-          f" {100 * det['detected_within_8_periods_fraction']:.1f} % of {det['runs']} runs (goal >= 99 %);"
+    print(f"    detection rho = {det['model_rho']:.4f}: within 8 base-motion periods (16 T) in"
+          f" {100 * det['detected_within_8_base_periods_fraction']:.1f} % of {det['runs']} runs (goal >= 99 %);"
+          f" within 8 T in {100 * det['detected_within_8_periods_fraction']:.1f} %;"
           f" latency p50 {det['latency_periods_p50']:.2f}, p99 {det['latency_periods_p99']:.2f},"
           f" max {det['latency_periods_max']:.2f} periods T")  # fmt: skip
     print(f"    false alarms rho = {fa['model_rho']:.5f}: {fa['false_alarms']} in {fa['runs']} runs of"
@@ -242,9 +245,9 @@ def main() -> dict:
                      "false_alarms": monte_carlo(stab_a, 100, 50, "sensor", 2, False)},
         "A_full_state": {"detection": monte_carlo(det_a, 50, 12, "full", 3, True),
                          "false_alarms": monte_carlo(stab_a, 20, 50, "full", 4, False)},
-        "B_sensor": {"detection": monte_carlo(det_b, 100, 14, "sensor", 5, True),
+        "B_sensor": {"detection": monte_carlo(det_b, 100, 18, "sensor", 5, True),
                      "false_alarms": monte_carlo(stab_b, 50, 50, "sensor", 6, False)},
-        "B_sensor_no_excitation": {"detection": monte_carlo(det_b0, 100, 14, "sensor", 7, True)},
+        "B_sensor_no_excitation": {"detection": monte_carlo(det_b0, 100, 18, "sensor", 7, True)},
         "cost": cost_in_node_setting(),
         "lockstep": lockstep_side_by_side(),
     }  # fmt: skip
@@ -256,7 +259,9 @@ def main() -> dict:
     report("(B) seed config (no base forcing), knock at the disk, sensor-only", res["B_sensor"]["detection"],
            res["B_sensor"]["false_alarms"])  # fmt: skip
     d = res["B_sensor_no_excitation"]["detection"]
-    print(f"    without excitation: within 8 periods in {100 * d['detected_within_8_periods_fraction']:.1f} % of"
+    print(f"    without excitation: within 8 base-motion periods in "
+          f"{100 * d['detected_within_8_base_periods_fraction']:.1f} %, within 8 T in "
+          f"{100 * d['detected_within_8_periods_fraction']:.1f} % of"
           f" {d['runs']} runs; latency p50 {d['latency_periods_p50']:.2f}, p99 {d['latency_periods_p99']:.2f},"
           f" max {d['latency_periods_max']:.2f} periods T")  # fmt: skip
     for mode, c in res["cost"].items():
