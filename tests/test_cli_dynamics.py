@@ -178,51 +178,23 @@ def test_cli_bad_arguments(venv_bin, tmp_path, args, needle):
     assert needle in proc.stderr and "Traceback" not in proc.stderr
 
 
+def floquet_json(venv_bin, tmp_path, *args):
+    return json.loads(run(venv_bin, tmp_path, "floquet", *args, "--json").stdout)
+
+
 def test_combined_motion_single_harmonic_equals_pitch(venv_bin, tmp_path):
-    comb = json.loads(
-        run(venv_bin, tmp_path, "floquet", "--motion", "combined", "--harmonic", "pitch:0.5:22.1", "--json").stdout
-    )
-    single = json.loads(
-        run(
-            venv_bin, tmp_path, "floquet", "--motion", "pitch", "--amplitude", "0.5", "--frequency", "22.1", "--json"
-        ).stdout
-    )
+    comb = floquet_json(venv_bin, tmp_path, "--motion", "combined", "--harmonic", "pitch:0.5:22.1")
+    single = floquet_json(venv_bin, tmp_path, "--motion", "pitch", "--amplitude", "0.5", "--frequency", "22.1")
     assert comb["max_abs_multiplier"] == pytest.approx(single["max_abs_multiplier"], rel=1e-12)
     assert comb["motion"]["kind"] == "combined" and len(comb["motion"]["harmonics"]) == 1
 
 
 def test_combined_commensurate_and_incommensurate(venv_bin, tmp_path):
-    both = json.loads(
-        run(
-            venv_bin,
-            tmp_path,
-            "floquet",
-            "--motion",
-            "combined",
-            "--harmonic",
-            "pitch:0.3:24.5",
-            "--harmonic",
-            "yaw:0.2:12.25",
-            "--json",
-        ).stdout
-    )
+    both = floquet_json(venv_bin, tmp_path, "--motion", "combined", "--harmonic", "pitch:0.3:24.5",
+                        "--harmonic", "yaw:0.2:12.25")  # fmt: skip
     assert both["period_s"] == pytest.approx(2 * np.pi / 12.25, rel=1e-12)  # fundamental 12.25 rad/s
-    aper = json.loads(
-        run(
-            venv_bin,
-            tmp_path,
-            "floquet",
-            "--motion",
-            "combined",
-            "--harmonic",
-            "pitch:0.3:24.5",
-            "--harmonic",
-            "roll:0.1:31.4159265",
-            "--horizon",
-            "4",
-            "--json",
-        ).stdout
-    )
+    aper = floquet_json(venv_bin, tmp_path, "--motion", "combined", "--harmonic", "pitch:0.3:24.5",
+                        "--harmonic", "roll:0.1:31.4159265", "--horizon", "4")  # fmt: skip
     assert aper["period_s"] is None and aper["multipliers"] is None
     # the rotor is stable here (continuous max|mu| ~ 0.9986 for the pitch part alone): negative exponent
     assert aper["lyapunov_exponent_1_s"] < 0 and aper["max_transition_norm"] >= 1.0
