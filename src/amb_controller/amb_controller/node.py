@@ -20,9 +20,11 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool
 
 import amb_ros.messages as m
 from amb_dynamics.amb import DiscretePID, DiscretePIDCoefficients
@@ -32,7 +34,7 @@ from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
-from amb_ros.qos import data_qos
+from amb_ros.qos import data_qos, latched_qos
 from amb_ros.runtime import run_node
 
 from .excitation import KINDS, Excitation
@@ -61,6 +63,11 @@ def specs() -> list[ParamSpec]:
         ParamSpec("excitation_frequency_hz", 10.0, "sine frequency", "Hz", 0.0, 1e6),
         ParamSpec("excitation_channels", [0, 1, 2, 3], "channel indices that receive the excitation"),
         ParamSpec("excitation_seed", 0, "seed of the noise excitation", "", 0, 2**31 - 1),
+        ParamSpec("safe_gains_on_unstable", False, "switch to the safe gain set when the stability monitor's latched "
+                  "/stability/unstable becomes True (stays switched; off by default)"),
+        ParamSpec("safe_proportional_gain", 0.0, "kp of the safe gain set; 0 = the nominal kp", "A/m", 0.0, 1e12),
+        ParamSpec("safe_derivative_gain", 0.0, "kd of the safe gain set; 0 = twice the nominal kd (more damping)",
+                  "A s/m", 0.0, 1e12),
     ]  # fmt: skip
 
 
@@ -83,6 +90,15 @@ class ControllerNode(RigNode):
         self.codec = m.joint_state_codec(self.channels, ("effort",))
         self.decoder = m.joint_state_decoder(self.channels, ("position",))
         self.sub = self.create_subscription(JointState, m.DISPLACEMENT, self.on_sample, qos, raw=True)
+        self.gain_set, self.safe_switch_t = "nominal", None
+        if p["safe_gains_on_unstable"]:
+            gains = AMBGains.from_config(cfg)
+            safe = replace(
+                gains, kp=p["safe_proportional_gain"] or gains.kp, kd=p["safe_derivative_gain"] or 2 * gains.kd
+            )
+            self.safe_coeffs = DiscretePIDCoefficients.from_gains(safe, self.Ts)
+            # served by Waiter.serve() (every ~0.1 s wall): the switch is a safety action, not part of the lockstep
+            self.unstable_sub = self.create_subscription(Bool, m.UNSTABLE, self.on_unstable, latched_qos())
         self.waiter = Waiter(self, [self.sub])
         self.answered = self.saturated = self.lost = self.restarts = self.repeated = 0
         self.sensor_losses = self.safe_ticks = self.nonfinite = 0
@@ -99,6 +115,16 @@ class ControllerNode(RigNode):
         self.last_update_ns: int | None = None
         self.last_stamp: int | None = None
         self.t_wall0 = time.monotonic()
+
+    def on_unstable(self, msg: Bool) -> None:
+        """The monitor's verdict: switch once to the safe gains (the PID keeps its integrator and filter state)."""
+        if msg.data and self.gain_set == "nominal":
+            self.pid.c = self.safe_coeffs
+            self.gain_set = "safe"
+            self.safe_switch_t = self.last_k * self.Ts if self.last_k >= 0 else 0.0
+            self.get_logger().warning(
+                f"/stability/unstable: switched to the safe gains at t = {self.safe_switch_t:.6g} s"
+            )
 
     # -- receive ------------------------------------------------------------------------------------
     def on_sample(self, raw: bytes) -> None:
@@ -206,6 +232,8 @@ class ControllerNode(RigNode):
                 "max current (A)": f"{self.max_current:.6g}",
                 "current limit (A)": f"{self.p['current_limit']:.6g}",
                 "excitation": self.excitation.kind if self.excitation.active else "none",
+                "gain set": self.gain_set,
+                "safe gains from t (s)": "-" if self.safe_switch_t is None else f"{self.safe_switch_t:.6g}",
                 "sensor losses": str(self.sensor_losses),
                 "zero-current ticks": str(self.safe_ticks),
                 "wall time (s)": f"{time.monotonic() - self.t_wall0:.3f}",

@@ -32,6 +32,8 @@ ANGULAR_ACCELERATION = "/base/angular_acceleration"
 DISPLACEMENT = "/amb/displacement"
 CURRENT = "/amb/current"
 STATE = "/amb_plant/state"
+MULTIPLIERS = "/stability/multipliers"
+UNSTABLE = "/stability/unstable"
 DIAGNOSTICS = "/diagnostics"
 BASE_FRAME = "base"
 

@@ -47,3 +47,14 @@ def diagnostics_qos() -> QoSProfile:
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.VOLATILE,
     )
+
+
+def latched_qos() -> QoSProfile:
+    """Verdicts (/stability/unstable): a late subscriber (the controller's safe-gain switch, a recorder) must
+    still get the current value."""
+    return QoSProfile(
+        depth=1,
+        history=HistoryPolicy.KEEP_LAST,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )

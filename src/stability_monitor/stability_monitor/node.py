@@ -39,25 +39,14 @@ from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
-from amb_ros.qos import data_qos
+from amb_ros.qos import data_qos, latched_qos
 from amb_ros.runtime import run_node
 
 from .messages import JointStateInput, multipliers_message
 from .pipeline import FORCING_CHOICES, MonitorPipeline, MonitorSettings
 
-MULTIPLIERS = "/stability/multipliers"
-UNSTABLE = "/stability/unstable"
+MULTIPLIERS, UNSTABLE = m.MULTIPLIERS, m.UNSTABLE
 INPUTS = ("state", "displacement")
-
-
-def latched_qos() -> QoSProfile:
-    # a late subscriber (the controller's safe-gain switch, a recorder) must still get the current verdict
-    return QoSProfile(
-        depth=1,
-        history=HistoryPolicy.KEEP_LAST,
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL,
-    )
 
 
 def multipliers_qos() -> QoSProfile:
