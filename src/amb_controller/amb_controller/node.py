@@ -128,12 +128,10 @@ class ControllerNode(RigNode):
 
     # -- receive ------------------------------------------------------------------------------------
     def on_sample(self, raw: bytes) -> None:
-        self.counters.received[m.DISPLACEMENT] += 1
-        try:
-            t_ns, y = self.decoder(raw)
-        except m.Rejected as exc:
-            self.counters.reject(m.DISPLACEMENT, str(exc))
+        got = self.counters.decode(m.DISPLACEMENT, self.decoder, raw)
+        if got is None:
             return
+        t_ns, y = got
         self.last_sample_wall = time.monotonic()
         self.sensor_state = "ok"  # (again) receiving samples
         if self.mode == "realtime":

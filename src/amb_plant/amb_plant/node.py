@@ -143,13 +143,10 @@ class PlantNode(RigNode):
         return t_ns // self.Ts_ns
 
     def _decode(self, topic: str, decoder, raw: bytes):
-        self.counters.received[topic] += 1
-        try:
-            t_ns, values = decoder(raw)
-        except m.Rejected as exc:
-            self.counters.reject(topic, str(exc))
+        got = self.counters.decode(topic, decoder, raw)
+        if got is None:
             return None, None
-        return self._step_of(topic, t_ns), values
+        return self._step_of(topic, got[0]), got[1]
 
     def on_command(self, raw: bytes) -> None:
         k, current = self._decode(m.CURRENT, self.cmd_decoder, raw)

@@ -15,7 +15,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.duration import Duration
 
-from .messages import DIAGNOSTICS
+from .messages import DIAGNOSTICS, Rejected
 from .qos import diagnostics_qos
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
@@ -31,6 +31,16 @@ class Counters:
         self.received: dict[str, int] = defaultdict(int)
         self.rejected: dict[str, int] = defaultdict(int)
         self.last_rejection = ""
+
+    def decode(self, topic: str, decoder, raw: bytes):
+        """Count a received message and decode it; a rejected one (NaN, wrong names or sizes) is counted with its
+        reason and gives None, so that it never reaches the physics."""
+        self.received[topic] += 1
+        try:
+            return decoder(raw)
+        except Rejected as exc:
+            self.reject(topic, str(exc))
+            return None
 
     def reject(self, topic: str, reason: str) -> None:
         self.rejected[topic] += 1

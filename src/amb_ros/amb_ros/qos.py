@@ -22,13 +22,15 @@ LOCKSTEP_DEPTH = 1000  # samples a slow reader may lag behind before KEEP_LAST d
 DIAGNOSTICS_DEPTH = 100
 
 
+def reliable_qos(depth: int, durability: DurabilityPolicy) -> QoSProfile:
+    """RELIABLE, KEEP_LAST ``depth``: every profile of the project that must not lose messages."""
+    return QoSProfile(depth=depth, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=durability)  # fmt: skip
+
+
 def lockstep_qos(depth: int = LOCKSTEP_DEPTH) -> QoSProfile:
-    return QoSProfile(
-        depth=depth,
-        history=HistoryPolicy.KEEP_LAST,
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL,
-    )
+    # transient local: a reader matched a little late still gets the history (nothing lost in lockstep)
+    return reliable_qos(depth, DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def realtime_qos() -> QoSProfile:
@@ -41,20 +43,10 @@ def data_qos(mode: str, depth: int = LOCKSTEP_DEPTH) -> QoSProfile:
 
 
 def diagnostics_qos() -> QoSProfile:
-    return QoSProfile(
-        depth=DIAGNOSTICS_DEPTH,
-        history=HistoryPolicy.KEEP_LAST,
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.VOLATILE,
-    )
+    return reliable_qos(DIAGNOSTICS_DEPTH, DurabilityPolicy.VOLATILE)
 
 
 def latched_qos() -> QoSProfile:
     """Verdicts (/stability/unstable): a late subscriber (the controller's safe-gain switch, a recorder) must
     still get the current value."""
-    return QoSProfile(
-        depth=1,
-        history=HistoryPolicy.KEEP_LAST,
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL,
-    )
+    return reliable_qos(1, DurabilityPolicy.TRANSIENT_LOCAL)

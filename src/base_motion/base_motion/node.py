@@ -101,12 +101,10 @@ class BaseMotionNode(RigNode):
         self.published += 1
 
     def on_clock(self, raw: bytes) -> None:
-        self.counters.received[m.CLOCK] += 1
-        try:
-            t_ns, _ = self.clock_decoder(raw)
-        except m.Rejected as exc:
-            self.counters.reject(m.CLOCK, str(exc))
+        got = self.counters.decode(m.CLOCK, self.clock_decoder, raw)
+        if got is None:
             return
+        t_ns, _ = got
         if t_ns % self.Ts_ns:
             self.counters.reject(m.CLOCK, f"t = {t_ns} ns is not on the {self.Ts_ns} ns sample grid")
             return

@@ -29,7 +29,7 @@ import os
 import sys
 import time
 
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Bool, Float64MultiArray
 
@@ -39,7 +39,7 @@ from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
-from amb_ros.qos import data_qos, latched_qos
+from amb_ros.qos import data_qos, latched_qos, reliable_qos
 from amb_ros.runtime import run_node
 
 from .messages import JointStateInput, multipliers_message
@@ -51,12 +51,7 @@ INPUTS = ("state", "displacement")
 
 def multipliers_qos() -> QoSProfile:
     # every refit is a result: reliable, deep enough for a recorder, no history for late joiners
-    return QoSProfile(
-        depth=100,
-        history=HistoryPolicy.KEEP_LAST,
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.VOLATILE,
-    )
+    return reliable_qos(100, DurabilityPolicy.VOLATILE)
 
 
 def specs() -> list[ParamSpec]:
@@ -133,21 +128,17 @@ class MonitorNode(RigNode):
 
     # -- receive ------------------------------------------------------------------------------------
     def on_imu(self, raw: bytes) -> None:
-        self.counters.received[m.IMU] += 1
-        try:
-            t_ns, values = self.imu_decoder(raw)
-        except m.Rejected as exc:
-            self.counters.reject(m.IMU, str(exc))
+        got = self.counters.decode(m.IMU, self.imu_decoder, raw)
+        if got is None:
             return
+        t_ns, values = got
         self.publish(self.pipeline.on_imu(t_ns * 1e-9, values[4:7]))
 
     def on_data(self, raw: bytes) -> None:
-        self.counters.received[self.topic] += 1
-        try:
-            t_ns, values = self.data_in(raw)
-        except m.Rejected as exc:
-            self.counters.reject(self.topic, str(exc))
+        got = self.counters.decode(self.topic, self.data_in, raw)
+        if got is None:
             return
+        t_ns, values = got
         if self.pipeline.scale_groups is None:
             self.pipeline.scale_groups = self.data_in.scale_groups()
         t0 = time.perf_counter()
