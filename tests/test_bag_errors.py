@@ -120,3 +120,13 @@ def test_cli_process_prints_one_line_without_traceback(tmp_path):
     assert proc.returncode == 1
     assert proc.stderr.strip() == f"amb-bag info: {path} is not an MCAP file"
     assert "Traceback" not in proc.stderr and proc.stdout == ""
+
+
+@pytest.mark.parametrize(
+    ("flag", "value", "needle"),
+    [("--batch", "-1", "--batch must be in 0..1000 ms, got -1.0"), ("--flush-interval", "0", "must be positive")],
+)
+def test_record_refuses_bad_options_before_creating_anything(flag, value, needle, tmp_path, capsys):
+    code, _ = _run(["record", "-o", str(tmp_path / "bag"), flag, value], capsys)
+    assert isinstance(code, str) and code.startswith("amb-bag record: ") and needle in code
+    assert not (tmp_path / "bag").exists()

@@ -114,6 +114,25 @@ def test_bad_parameters_exit_with_one_line(tmp_path, venv_bin, exe, params, need
     assert "Traceback" not in text
 
 
+@pytest.mark.parametrize(
+    ("args", "exit_code", "needle"),
+    [
+        (["--rt-priority", "20"], 1, "--rt-priority in lockstep needs --no-monitor and no --bag"),
+        (["--rt-priority", "20", "--no-monitor", "--bag", "b"], 1, "--rt-priority in lockstep needs --no-monitor"),
+        (["--rt-priority", "100"], 2, "argument --rt-priority: invalid choice: 100"),  # argparse's usage error
+    ],
+)
+def test_amb_rig_refuses_a_realtime_lockstep_with_consumers(tmp_path, venv_bin, args, exit_code, needle):
+    """A SCHED_FIFO lockstep loop would starve the monitor and the recorder (measured: they lose samples)."""
+    cmd = [str(venv_bin / "amb-rig"), "run", "--duration", "0.1", *args]
+    with spawn(cmd, tmp_path / "rig.log", cwd=tmp_path) as proc:
+        code = proc.wait(60)
+        text = proc.text()
+    assert code == exit_code, text
+    assert needle in text and "Traceback" not in text
+    assert not (tmp_path / "b").exists()  # refused before anything was started or written
+
+
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
 def test_interrupted_amb_rig_leaves_no_process(tmp_path, venv_bin, sig):
     """SIGINT/SIGTERM: amb-rig stops its nodes cleanly and exits 128+sig; SIGKILL: PR_SET_PDEATHSIG ends them."""

@@ -82,7 +82,7 @@ def stamp(msg) -> int:
     return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
 
 
-def lockstep_run(tmp_path, venv_bin):
+def lockstep_run(tmp_path, venv_bin, extra=()):
     from sensor_msgs.msg import JointState
 
     rec = DdsRecorder({"/amb/displacement": JointState, "/amb_plant/state": JointState})
@@ -97,6 +97,7 @@ def lockstep_run(tmp_path, venv_bin):
                 str(DISK_V),
                 "--param",
                 "plant:min_subscribers=2",
+                *extra,
             ],
         )
     finally:
@@ -136,8 +137,16 @@ def test_lockstep_equals_offline_and_two_runs_are_identical(tmp_path, venv_bin):
     ctl = s1["nodes"]["controller"]["values"]
     assert ctl["samples answered"] == str(steps + 1) and ctl["samples lost"] == "0"
     assert all(n["values"]["rejected total"] == "0" for n in s1["nodes"].values())
+    # /clock every clock_every = 5 steps and at the last one; base_motion kept ahead of it all the same
+    plant = s1["nodes"]["plant"]["values"]
+    assert int(plant["published /clock"]) == len([k for k in range(steps + 1) if k % 5 == 0 or k == steps])
+    assert int(s1["nodes"]["base_motion"]["values"]["received /clock"]) == int(plant["published /clock"])
 
-    s2, disp2, _ = lockstep_run(tmp_path / "b", venv_bin)
+    # the second run under SCHED_FIFO (the speed option; where refused, the nodes say so and run normally):
+    # scheduling changes the timing only, never the numbers
+    s2, disp2, _ = lockstep_run(tmp_path / "b", venv_bin, ["--no-monitor", "--rt-priority", "20"])
     assert s2["steps"] == steps
+    assert "SCHED_FIFO 20" in s2["nodes"]["plant"]["values"]["scheduling"]
+    assert "monitor" not in s2["nodes"]
     y2 = np.array([disp2[k * TS_NS] for k in range(steps + 1)])
     assert np.array_equal(y_dds, y2)  # bit for bit

@@ -63,6 +63,8 @@ class RecordOptions:
     progress_interval_s: float = 0.25
     qos_depth: int | None = None
     duration_s: float | None = None
+    batch_s: float = 0.005
+    niceness: int = 5
     debug_delay_s: float = 0.0  # test-only: sleep per message, to show that loss is reported
     exclude: list[str] = field(default_factory=list)
 
@@ -231,7 +233,8 @@ class Recorder:
             if self.diagnostics is not None and self.diagnostics.due():
                 self.publish_status()
             timeout = min(WAIT_MAX_S, next_scan - now, next_flush - now, next_progress - now, end - now)
-            self._wait_and_drain(max(0.0, timeout))
+            if self._wait_and_drain(max(0.0, timeout)) and self.opts.batch_s:
+                time.sleep(self.opts.batch_s)  # let messages gather: one wake-up per batch, not per message
             now = time.monotonic()
         # Take what is already delivered, then a last short wait for messages still in flight.
         while self._wait_and_drain(0.02):
@@ -303,6 +306,12 @@ def add_record_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--qos-depth", type=int, metavar="N",
                         help="KEEP_LAST N subscriptions instead of KEEP_ALL (may drop when behind)")  # fmt: skip
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    parser.add_argument("--batch", type=float, default=5.0, metavar="MS",
+                        help="pause after each drain so that one wake-up takes many messages (default 5 ms; the "
+                        "publishers' history depth must cover it)")  # fmt: skip
+    parser.add_argument("--niceness", type=int, default=5, choices=range(20), metavar="N",
+                        help="added to the niceness of every recorder thread: the recorded loop gets the CPU first "
+                        "(default 5; 0 = off)")  # fmt: skip
     parser.add_argument("--debug-delay-per-message", type=float, default=0.0, help=argparse.SUPPRESS)
 
 
@@ -312,13 +321,15 @@ def options_from_args(args: argparse.Namespace) -> RecordOptions:
         value = getattr(args, name)
         if value is not None and not value > 0:
             raise BagError(f"--{name.replace('_', '-')} must be positive, got {value}")
+    if not 0 <= args.batch <= 1000:
+        raise BagError(f"--batch must be in 0..1000 ms, got {args.batch}")
     return RecordOptions(
         output=args.output, topics=args.topics, include_hidden=args.include_hidden, compression=args.compression,
         chunk_size=args.chunk_size, split_size_mb=args.split_size, split_duration_s=args.split_duration,
         discovery_interval_s=args.discovery_interval, flush_interval_s=args.flush_interval,
         progress_interval_s=args.progress_interval,
         qos_depth=args.qos_depth, duration_s=args.duration, debug_delay_s=args.debug_delay_per_message,
-        exclude=args.exclude,
+        exclude=args.exclude, batch_s=args.batch * 1e-3, niceness=args.niceness,
     )  # fmt: skip
 
 
@@ -336,10 +347,13 @@ def record(opts: RecordOptions) -> dict:
     from rclpy.signals import SignalHandlerOptions
 
     from amb_ros.diagnostics import Diagnostics
+    from amb_ros.node_base import lower_priority
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(NODE_NAME, enable_rosout=False, start_parameter_services=False)
     recorder = Recorder(node, opts, writer, diagnostics=Diagnostics(node, period_s=DIAGNOSTICS_PERIOD_S))
+    if opts.niceness:
+        lower_priority(opts.niceness)  # after the node exists: its DDS threads are niced too
 
     def request_stop(_signum, _frame):
         recorder.stop_requested = True

@@ -69,8 +69,9 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
         per["plant"]["initial_displacement"] = float(args.initial_displacement)
     per["plant"]["start_timeout_s"] = float(args.start_timeout)
     per["plant"]["min_diagnostics_readers"] = 1  # amb-rig's collector: it must hear the plant's final report
-    if args.mode == "realtime" and args.rt_priority:
-        common["rt_priority"] = int(args.rt_priority)
+    if args.rt_priority:  # the loop's nodes only: the monitor and the recorder are niced consumers beside it
+        for name in ("base_motion", "controller", "plant"):
+            per[name]["rt_priority"] = int(args.rt_priority)
     for item in args.param:
         node, _, rest = item.partition(":")
         key, sep, raw = rest.partition("=")

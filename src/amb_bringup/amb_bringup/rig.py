@@ -56,8 +56,12 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--rt-priority",
         type=int,
-        default=20,
-        help="realtime: SCHED_FIFO priority of the node loops (0 = normal scheduling)",
+        default=None,
+        choices=range(100),
+        metavar="N",
+        help="SCHED_FIFO priority of base_motion, plant and controller (0 = normal scheduling; default 20 in "
+        "realtime, 0 in lockstep; lockstep only with --no-monitor and without --bag, whose niced consumers would "
+        "starve; without permission the nodes run normally and say so)",
     )
     r.add_argument("--json", action="store_true", help="print the summary as JSON")
     r.add_argument("--no-plant", action="store_true", help="no plant: a real rig supplies /amb/displacement")
@@ -86,6 +90,14 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(f"amb-rig: {exc}") from None
     if args.duration <= 0 and not args.no_plant:
         raise SystemExit("amb-rig: --duration must be > 0 s")
+    if args.rt_priority is None:
+        args.rt_priority = 20 if args.mode == "realtime" else 0
+    if args.rt_priority and args.mode == "lockstep" and (args.bag or not args.no_monitor):
+        # measured: the loop then runs ~40 % faster, and the monitor and recorder fall behind and lose samples
+        raise SystemExit(
+            "amb-rig: --rt-priority in lockstep needs --no-monitor and no --bag (a SCHED_FIFO loop "
+            "starves them: they would lose samples)"
+        )
     sys.exit(run(args, cfg))
 
 

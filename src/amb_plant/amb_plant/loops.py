@@ -18,6 +18,8 @@ def run_lockstep(node) -> None:
     Ts_ns = node.Ts_ns
     steps = round(node.p["duration_s"] / node.Ts) if node.p["duration_s"] > 0 else None
     clock_codec, stepper = node.clock_codec, node.stepper
+    clock_every = node.p["clock_every"]
+    only_command = [node.cmd_sub]
     no_values = np.zeros(0)
     k = 0
     timeout = node.p["start_timeout_s"]  # the first answer may take longer (peers finish starting up)
@@ -26,8 +28,9 @@ def run_lockstep(node) -> None:
         node.k_now = k
         t_sent = time.perf_counter()
         node.publish_outputs(k, t_ns)  # the displacement first: it starts the controller (the critical path)
-        node.clock_pub.publish(clock_codec.encode(t_ns, no_values))
-        node.counters.published[m.CLOCK] += 1
+        if k % clock_every == 0 or k == steps:
+            node.clock_pub.publish(clock_codec.encode(t_ns, no_values))
+            node.counters.published[m.CLOCK] += 1
         if steps is not None and k >= steps:
             node.finished = True
             return
@@ -45,7 +48,9 @@ def run_lockstep(node) -> None:
             now = time.monotonic()
             if now > deadline:
                 raise RunFailed(lockstep_timeout_message(node, k, mats is not None, timeout))
-            node.waiter.wait(deadline - now)
+            # with the base sample in hand only the command matters: base samples arriving meanwhile (base_motion
+            # runs ahead in bursts) then do not wake this loop
+            node.waiter.wait(deadline - now, only_command if mats is not None else None)
         node.round_trip.add(time.perf_counter() - t_sent)
         node.advance(mats, node.commands.pop(k))
         timeout = node.p["command_timeout_s"]
@@ -57,7 +62,14 @@ def run_lockstep(node) -> None:
 
 
 def lockstep_timeout_message(node, k: int, have_base: bool, timeout: float) -> str:
-    what = [] if have_base else [f"base sample ({m.IMU}, {m.ANGULAR_ACCELERATION})"]
+    what = (
+        []
+        if have_base
+        else [
+            f"base sample ({m.IMU}, {m.ANGULAR_ACCELERATION}; base_motion's lead_samples must "
+            f"be at least clock_every = {node.p['clock_every']})"
+        ]
+    )
     if k not in node.commands:
         what.append(f"command on {m.CURRENT} (controller gone?)")
     return f"no {' or '.join(what)} for step {k} (t = {k * node.Ts:.6g} s) within {timeout:g} s"

@@ -2,7 +2,8 @@
 
 Topics (layouts in docs/topics.md)
 ----------------------------------
-publishes  /clock (lockstep)            rosgraph_msgs/Clock, t_k = k Ts: the plant is the clock master
+publishes  /clock (lockstep)            rosgraph_msgs/Clock, t_k = k Ts every clock_every steps (default 5: a 1 kHz
+                                        clock at 5 kHz) and at the last step: the plant is the clock master
 publishes  /amb/displacement            sensor_msgs/JointState: name = channels, position = measured y (m)
 publishes  /amb_plant/state             sensor_msgs/JointState: name = generalised coordinates (modes when
                                         modal_cutoff is set, FE DOFs n<i>_v... otherwise), position = q,
@@ -12,9 +13,10 @@ publishes  /diagnostics                 steps, rates, peak displacement vs air g
 subscribes /amb/current                 sensor_msgs/JointState: effort = coil current (A), stamp = the sample
 subscribes /base/imu, /base/angular_acceleration   base rates Omega, dOmega held over each step
 
-Lockstep: at step k publish /clock, y_k and the state (stamp t_k), wait for the base sample k and the command
-stamped t_k, then x_{k+1} = E_k x_k + Gamma_k i_k + g_k (``PlantStepper``) - exactly ``SampledLoop.simulate``.
-The matrices of step k are computed while the controller works on y_k.  No command within command_timeout_s
+Lockstep: at step k publish y_k, the state and /clock (stamp t_k), wait for the base sample k and the command
+stamped t_k (waiting on the command alone once the base sample is in), then x_{k+1} = E_k x_k + Gamma_k i_k + g_k
+(``PlantStepper``) - exactly ``SampledLoop.simulate``.  The matrices of step k are computed while the controller
+works on y_k.  No command within command_timeout_s
 (controller gone): ERROR diagnostic, exit code 3.  Realtime: wall-clock ticks, latest command and base sample,
 sensor model and the command policy of :mod:`amb_plant.sensor`.
 """
@@ -70,6 +72,8 @@ def specs() -> list[ParamSpec]:
         ParamSpec("initial_displacement", 0.0, "initial lateral (v) displacement of the disk node", "m", -1.0, 1.0),
         ParamSpec("max_displacement_ratio", 100.0, "stop the run when |y| exceeds this many air gaps (the linear "
                   "model means nothing there)", "", 1.0, 1e12),
+        ParamSpec("clock_every", 5, "lockstep: publish /clock every N steps (5 at 5 kHz = a 1 kHz clock; base_motion"
+                  " runs lead_samples ahead of it)", "steps", 1, 10000),
         ParamSpec("state_every", 1, "publish /amb_plant/state every N steps", "steps", 1, 1000000),
     ]  # fmt: skip
 

@@ -9,6 +9,7 @@ signal handler is seen within ``POLL_S``.
 
 from __future__ import annotations
 
+import os
 import time
 
 from rclpy.executors import SingleThreadedExecutor
@@ -28,14 +29,16 @@ class Waiter:
         self._executor.add_node(node)
         self._next_serve = 0.0
 
-    def wait(self, timeout_s: float) -> None:
-        """Block until a subscription may have data, or ``min(timeout_s, POLL_S)`` has passed."""
+    def wait(self, timeout_s: float, subs=None) -> None:
+        """Block until a subscription (of ``subs``, default all) may have data, or ``min(timeout_s, POLL_S)``
+        has passed.  Waiting on fewer subscriptions spares wake-ups for messages that are not needed yet."""
         timeout_s = max(0.0, min(timeout_s, POLL_S))
-        if not self.subs:  # rcl refuses an empty wait set
+        subs = self.subs if subs is None else subs
+        if not subs:  # rcl refuses an empty wait set
             time.sleep(timeout_s)
             return
         self._ws.clear_entities()
-        for sub in self.subs:
+        for sub in subs:
             self._ws.add_subscription(sub.handle)
         self._ws.wait(int(timeout_s * 1e9))
 
@@ -86,6 +89,8 @@ class Ticker:
                 break
             if remaining > self.spin_ns:
                 waiter.wait((remaining - self.spin_ns) * 1e-9)
+            else:
+                os.sched_yield()  # polling: under SCHED_FIFO, let this process's DDS threads run on this core
             on_wait()
         now = time.monotonic_ns()
         lateness = now - deadline

@@ -36,10 +36,33 @@ def common_specs() -> list[ParamSpec]:
         ),
         ParamSpec("qos_depth", 1000, "history depth of the reliable lockstep topics", "samples", lo=1, hi=100000),
         ParamSpec(
-            "rt_priority", 0, "realtime: SCHED_FIFO priority of the loop thread (0 = normal scheduling)", "", 0, 99
+            "rt_priority", 0, "SCHED_FIFO priority of every thread of the node (0 = normal scheduling)", "", 0, 99
         ),
         ParamSpec("diagnostics_period_s", 0.5, "wall time between /diagnostics messages", "s", lo=0.01, hi=60.0),
     ]
+
+
+def _thread_ids() -> list[int]:
+    try:
+        return [int(t) for t in os.listdir("/proc/self/task")]
+    except OSError:
+        return [0]
+
+
+def lower_priority(increment: int) -> str:
+    """Add ``increment`` to the niceness of every thread of this process.
+
+    ``os.nice`` changes the calling thread only (Linux niceness is per thread), and the DDS threads that receive
+    every message were created before; a consumer beside the lockstep loop (monitor, recorder) must yield the CPU
+    with all of them, or their wake-ups still compete with the loop.
+    """
+    tids = _thread_ids()
+    for tid in tids:
+        try:
+            os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + increment))
+        except OSError:  # a thread that has just ended
+            continue
+    return f"nice +{increment} ({len(tids)} threads)"
 
 
 def set_realtime_priority(priority: int) -> str:
@@ -50,10 +73,7 @@ def set_realtime_priority(priority: int) -> str:
     The loops block between samples, so they do not starve the machine.  Returns a description for
     diagnostics; not permitted -> normal scheduling.
     """
-    try:
-        tids = [int(t) for t in os.listdir("/proc/self/task")]
-    except OSError:
-        tids = [0]
+    tids = _thread_ids()
     try:
         for tid in tids:
             os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
@@ -78,7 +98,7 @@ class RigNode(Node):
         self.counters = Counters()
         self.diag = Diagnostics(self, self.p["diagnostics_period_s"])
         self.scheduling = "normal"
-        if self.mode == "realtime" and self.p["rt_priority"] > 0:
+        if self.p["rt_priority"] > 0:
             self.scheduling = set_realtime_priority(self.p["rt_priority"])
 
     def common_values(self) -> dict[str, str]:

@@ -25,7 +25,6 @@ The numbers come from ``amb_dynamics.estimate*`` through :mod:`stability_monitor
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 
@@ -37,7 +36,7 @@ import amb_ros.messages as m
 from amb_dynamics.errors import InputError
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.loop import Waiter
-from amb_ros.node_base import RigNode
+from amb_ros.node_base import RigNode, lower_priority
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos, latched_qos, reliable_qos
 from amb_ros.runtime import run_node
@@ -182,7 +181,7 @@ class MonitorNode(RigNode):
     # -- loop -----------------------------------------------------------------------------------------
     def run(self) -> int:
         if self.p["niceness"]:
-            os.nice(self.p["niceness"])
+            self.scheduling = lower_priority(self.p["niceness"])
         batch = self.p["batch_s"]
         while not self.stop.is_set:
             self.waiter.wait(1.0)
