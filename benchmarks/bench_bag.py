@@ -10,7 +10,9 @@
    ``--bag`` (the recorder started by amb-rig, every reader matched before step 0), alternating runs in this
    invocation (the machine's load drifts); steps/s is the plant's loop rate from ``amb-rig run --json``
    (``steps_per_s``, start-up excluded).  Cost = median over the back-to-back pairs of 1 - with / without
-   (robust to load drifting between pairs); goal < 20 %.
+   (robust to load drifting between pairs); goal < 20 %.  Control: the same run beside a bare raw reader of the
+   rig's topics that takes every message and writes nothing (niced and batched like the recorder): the cost of
+   one more DDS reader alone, which no recorder can go below.
 """
 
 from __future__ import annotations
@@ -211,15 +213,68 @@ def bench_end_to_end(tmp: Path, steps: int = E2E_STEPS, rate: float = 0.0) -> di
     }
 
 
-def rig_steps_per_s(bag: Path | None) -> dict:
-    """One lockstep ``amb-rig run`` without the monitor, optionally recorded into ``bag``: plant steps/s."""
+RIG_TOPICS = ("/clock", "/amb/displacement", "/amb/current", "/amb_plant/state", "/base/imu",
+              "/base/angular_acceleration")  # fmt: skip
+GATES = (
+    "plant:min_subscribers=2",
+    "plant:min_state_subscribers=1",
+    "base_motion:min_imu_subscribers=2",
+    "base_motion:min_acceleration_subscribers=2",
+)  # every step reaches the bare reader too
+READER_GATES = [a for g in GATES for a in ("--param", g)]
+
+
+def bare_reader() -> None:
+    """Raw subscriptions to the rig's topics (lockstep QoS); take everything every 5 ms until SIGINT."""
+    import signal
+
+    import rclpy
+    from geometry_msgs.msg import Vector3Stamped
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import Imu, JointState
+
+    from amb_ros.node_base import lower_priority
+    from amb_ros.qos import lockstep_qos
+
+    types = {"/clock": Clock, "/base/imu": Imu, "/base/angular_acceleration": Vector3Stamped}
+    rclpy.init()
+    node = rclpy.create_node("bench_bare_reader")
+    subs = [node.create_subscription(types.get(t, JointState), t, lambda _: None, lockstep_qos(), raw=True)
+            for t in RIG_TOPICS]  # fmt: skip
+    lower_priority(5)
+    stop = []
+    signal.signal(signal.SIGINT, lambda *_: stop.append(1))
+    taken = 0
+    while not stop:
+        time.sleep(0.005)
+        for sub in subs:
+            while sub.handle.take_message(sub.msg_type, True) is not None:
+                taken += 1
+    print(json.dumps({"taken": taken}), flush=True)
+
+
+def rig_steps_per_s(bag: Path | None, reader: bool = False) -> dict:
+    """One lockstep ``amb-rig run`` without the monitor, optionally recorded into ``bag`` or beside a bare
+    reader: plant steps/s."""
+    import signal
+
     from amb_ros.env import child_env
 
     cmd = [str(BIN / "amb-rig"), "run", "--json", "--no-monitor", "--duration", str(RIG_DURATION),
            "--set", "controller.current_limit=1e9"]  # fmt: skip
     if bag is not None:
         cmd += ["--bag", str(bag)]
-    out = subprocess.run(cmd, env=child_env(), capture_output=True, text=True, timeout=600)
+    proc = None
+    if reader:
+        cmd += READER_GATES
+        proc = subprocess.Popen([sys.executable, __file__, "--reader"], env=child_env(), stdout=subprocess.PIPE,
+                                text=True)  # fmt: skip
+    try:
+        out = subprocess.run(cmd, env=child_env(), capture_output=True, text=True, timeout=600)
+    finally:
+        if proc is not None:
+            proc.send_signal(signal.SIGINT)
+            proc.communicate(timeout=30)
     try:
         summary = json.loads(out.stdout)
     except json.JSONDecodeError:
@@ -235,12 +290,14 @@ def rig_steps_per_s(bag: Path | None) -> dict:
 
 def bench_recording_cost(tmp: Path, pairs: int = RIG_PAIRS) -> dict:
     """Lockstep steps/s without and with recording, alternating runs in this invocation."""
-    without, with_bag = [], []
+    without, with_bag, with_reader = [], [], []
     for i in range(pairs):
         without.append(rig_steps_per_s(None))
         with_bag.append(rig_steps_per_s(tmp / f"rig{i}"))
         shutil.rmtree(tmp / f"rig{i}", ignore_errors=True)
+        with_reader.append(rig_steps_per_s(None, reader=True))
     pair_costs = [1.0 - b["steps_per_s"] / a["steps_per_s"] for a, b in zip(without, with_bag, strict=True)]
+    reader_costs = [1.0 - b["steps_per_s"] / a["steps_per_s"] for a, b in zip(without, with_reader, strict=True)]
     cost = statistics.median(pair_costs)
     return {
         "steps_per_s_without_bag": statistics.median(r["steps_per_s"] for r in without),
@@ -249,6 +306,9 @@ def bench_recording_cost(tmp: Path, pairs: int = RIG_PAIRS) -> dict:
         "pair_costs": pair_costs,
         "runs_without": [r["steps_per_s"] for r in without],
         "runs_with": [r["steps_per_s"] for r in with_bag],
+        "runs_with_bare_reader": [r["steps_per_s"] for r in with_reader],
+        "bare_reader_cost": statistics.median(reader_costs),
+        "bare_reader_costs": reader_costs,
         "messages_per_run": with_bag[0]["messages"],
         "lost": sum(r["lost"] for r in with_bag),
         "goal_met": cost < GOAL_COST,
@@ -297,6 +357,9 @@ def main() -> dict:
     print(f"  cost of recording: {100 * cost['cost']:.1f} % of steps/s, median of the pairs "
           f"({', '.join(f'{100 * c:.1f} %' for c in cost['pair_costs'])}); goal < {100 * GOAL_COST:.0f} %: "
           f"{'ok' if cost['goal_met'] else 'MISSED'}")  # fmt: skip
+    print(f"  control: beside a bare raw reader of the same topics (takes, writes nothing) "
+          f"{100 * cost['bare_reader_cost']:.1f} % ({', '.join(f'{100 * c:.1f} %' for c in cost['bare_reader_costs'])})"
+          f": the cost of one more DDS reader")  # fmt: skip
     return {"write_path": write, "end_to_end": e2e, "paced": paced, "recording_cost": cost}
 
 
@@ -306,8 +369,11 @@ if __name__ == "__main__":
     parser.add_argument("--no-diagnostics", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--sink", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--rate", type=float, default=0.0, help=argparse.SUPPRESS)
+    parser.add_argument("--reader", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.flood:
+    if args.reader:
+        bare_reader()
+    elif args.flood:
         flood_publisher(args.flood, diagnostics=not args.no_diagnostics, rate=args.rate)
     elif args.sink:
         bare_sink(args.sink)
