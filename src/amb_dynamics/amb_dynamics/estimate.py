@@ -11,12 +11,15 @@ z_j (``StreamingEstimator`` does it) gives z_{j+1} = A z_j + d_{j mod r} with th
 multipliers of the modes present in the data.  ``fit_period_map`` identifies A on the dominant subspace:
 
 1. project the columns on the complement of the r forcing classes (removes d exactly; Frisch-Waugh);
-2. SVD of the regressor; keep the directions above max(numerical floor, noise floor): this is the rank /
-   energy test, and a zero rank means *insufficient excitation* (no transient above noise: a decayed
-   noise-free rotor carries no information about its multipliers);
+2. SVD of the regressor; keep the directions above max(numerical floor, measurement-noise floor, and for noisy
+   data the plateau floor of process-noise innovations, :func:`plateau_floor`): this is the rank / energy
+   test, and a zero rank means *insufficient excitation* (no transient above noise: a decayed noise-free rotor
+   carries no information about its multipliers);
 3. exact DMD (least squares, optionally total least squares for measurement noise) in that subspace;
 4. eigenvalues -> multipliers, and a first-order standard error of rho = max|mu| from the LS residual
-   covariance and the eigenvalue's left/right eigenvectors.
+   covariance and the eigenvalue's left/right eigenvectors;
+5. optionally ('opt', the monitor's default) the multipliers refined by variable projection on the snapshots
+   themselves, with the standard error from its Jacobian (:mod:`amb_dynamics.estimate_opt`).
 
 ``InstabilityFlag`` turns the estimates into a verdict with a margin, a confidence gate and hysteresis.
 Noise-free data of a linear loop are fitted exactly: the dominant multipliers come out to round-off.
@@ -35,7 +38,8 @@ from .errors import InputError
 
 REL_FLOOR = 1e-9  # singular values below this fraction of the data norm are round-off, not signal
 NOISE_FACTOR = 1.5  # noise floor = this times the expected largest singular value of the noise matrix
-METHODS = ("ls", "tls")
+PLATEAU_FACTOR = 1.5  # the same safety on the top of the innovation plateau (plateau_floor)
+METHODS = ("ls", "tls", "opt")
 
 STABLE, UNSTABLE, MARGINAL = "stable", "unstable", "marginal"
 INSUFFICIENT, COLLECTING = "insufficient_excitation", "collecting"  # no information / too few periods yet
@@ -144,6 +148,26 @@ def noise_floor(row_noise: np.ndarray | None, rows: int, cols: int, data_norm: f
     return float(floor)
 
 
+def plateau_floor(s: np.ndarray, rows: int) -> float:
+    """Largest singular value of a noise matrix whose smallest one is s[-1], for a (rows x len(s)) regressor.
+
+    Process noise (excitation injection, plant noise) gives every period an innovation that the one-period map
+    does not predict: in the period-stacked data it acts like noise whose level the measurement-noise floor does
+    not know, and its singular values form a plateau under the transient's.  With more rows than pairs the
+    smallest singular value is on that plateau, and a noise matrix's singular values span about
+    sigma (sqrt(rows) -+ sqrt(k)) (Marchenko-Pastur): the top of the plateau is s_min (sqrt(rows) + sqrt(k)) /
+    (sqrt(rows) - sqrt(k)), times ``PLATEAU_FACTOR``.  Under white measurement noise alone this is the
+    measurement-noise floor again (sigma from the data instead of the fourth differences); for exact data it
+    is round-off; with no more rows than pairs it is not defined (0).  Only for noisy data (``fit_period_map``
+    with ``row_noise``): with fewer pairs than modes the smallest singular value is still signal, which exact
+    data must keep.
+    """
+    k = s.size
+    if k < 2 or rows <= k:
+        return 0.0
+    return float(PLATEAU_FACTOR * s[-1] * (np.sqrt(rows) + np.sqrt(k)) / (np.sqrt(rows) - np.sqrt(k)))
+
+
 def fit_period_map(
     Z: np.ndarray,
     forcing: str | int = "constant",
@@ -163,9 +187,11 @@ def fit_period_map(
         (see :func:`forcing_regressors`); each costs one snapshot pair per regressor.
     row_noise : (m,) array, float or None
         Measurement-noise std per row in the units of Z (None: noise-free, round-off floor only).
-    method : 'ls' or 'tls'
-        Least squares (consistent under process noise) or total least squares (debiased for measurement
-        noise, Hemati et al. 2017: both snapshot sets projected on the leading right singular vectors).
+    method : 'ls', 'tls' or 'opt'
+        Least squares (consistent under process noise), total least squares (debiased for measurement
+        noise, Hemati et al. 2017: both snapshot sets projected on the leading right singular vectors), or
+        'opt': the LS fit refined by variable projection (optimized DMD, :mod:`amb_dynamics.estimate_opt`:
+        maximum likelihood for white noise on the snapshots, which the excitation's fast response is).
     max_rank : int
         Largest number of modes modelled.
     min_dof : int
@@ -175,7 +201,8 @@ def fit_period_map(
     if Z.ndim != 2 or not np.isfinite(Z).all():
         raise InputError("snapshot matrix must be a finite 2-D array")
     if method not in METHODS:
-        raise InputError(f"unknown estimation method '{method}' (ls or tls)")
+        raise InputError(f"unknown estimation method '{method}' (ls, tls or opt)")
+    base = "ls" if method == "opt" else method
     if max_rank < 1 or min_dof < 1:
         raise InputError("max_rank and min_dof must be >= 1")
     m, cols = Z.shape
@@ -190,12 +217,14 @@ def fit_period_map(
     Xm, Xp = Z[:, :-1] @ Q, Z[:, 1:] @ Q
     U, s, Vh = np.linalg.svd(Xm, full_matrices=False)
     floor = noise_floor(row_noise, m, free, float(np.linalg.norm(Z, 2)))
+    if row_noise is not None:  # noisy data: the innovations of process noise are noise too
+        floor = max(floor, plateau_floor(s, m))
     signal_rank = int(np.count_nonzero(s > floor))
     rank = min(signal_rank, max_rank, free - min_dof)
     if signal_rank == 0:
         return MapFit(empty, np.inf, s, floor, pairs, 0, 0, 0, method, "no transient above the noise floor")
     Xm0, Xp0 = Xm, Xp
-    if method == "tls":
+    if base == "tls":
         _, _, Wh = np.linalg.svd(np.vstack([Xm, Xp]), full_matrices=False)
         Pv = Wh[:rank].T @ Wh[:rank]
         Xm, Xp = Xm @ Pv, Xp @ Pv
@@ -209,7 +238,12 @@ def fit_period_map(
     mu = mu[order]
     # the residual of the un-projected data in the subspace (TLS makes the projected residual zero)
     std = _rho_std(A, Ur.T @ Xm0, Ur.T @ Xp0, vl[:, order[0]], vr[:, order[0]], mu[0], free - rank)
-    return MapFit(mu, std, s, floor, pairs, signal_rank, rank, free - rank, method)
+    fit = MapFit(mu, std, s, floor, pairs, signal_rank, rank, free - rank, method)
+    if method == "opt":
+        from .estimate_opt import refine_fit  # imports this module: resolved at call time
+
+        return refine_fit(Z, fit, forcing)
+    return fit
 
 
 def _rho_std(A, Xr, Yr, wl, vr, mu0, dof) -> float:

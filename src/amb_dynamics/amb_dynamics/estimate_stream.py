@@ -6,8 +6,9 @@ T/Ts and the phase offsets are whole numbers of samples, by linear interpolation
 phase vectors of one period into a column (an intra-period delay embedding: with P phases the 4 AMB channels
 observe every lightly damped mode, which is what makes the sensor-only mode work), and every
 P / ``updates_per_period`` phases refits the one-period map over the last ``window`` periods with
-:func:`amb_dynamics.estimate.fit_period_map`.  A column may start at any phase, so updates come several times
-per period.  Rows are scaled by their channel's RMS; the measurement noise per channel is given or estimated
+:func:`amb_dynamics.estimate.fit_period_map` (LS DMD on the signal subspace; with ``method='opt'`` the chosen
+fit is then refined once by variable projection).  A column may start at any phase, so updates come several
+times per period.  Rows are scaled by their channel's RMS; the measurement noise per channel is given or estimated
 from fourth differences of consecutive samples (robust MAD; a smooth signal at 5 kHz has almost none).
 """
 
@@ -20,6 +21,7 @@ import numpy as np
 
 from .errors import InputError
 from .estimate import InstabilityFlag, MapFit, VerdictPolicy, fit_period_map, forcing_regressors
+from .estimate_opt import refine_fit
 
 SLOT_TOL = 1e-3  # a sample within this fraction of Ts of a phase time is taken as it is
 NOISE_BUFFER = 2048  # fourth differences kept per channel for the noise estimate
@@ -44,6 +46,10 @@ class EstimatorConfig:
         Snapshot pairs (periods) in the moving window.
     updates_per_period : int
         Refits per period (each starting the columns at another phase).
+    method : str
+        'opt' (LS DMD refined by variable projection, :mod:`amb_dynamics.estimate_opt`), 'ls' or 'tls'.
+    max_rank : int
+        Largest number of modes modelled.
     noise_std : float, sequence or None
         Measurement-noise std per channel (signal units); None = estimate from the data.
     scale_groups : sequence of int or None
@@ -60,7 +66,7 @@ class EstimatorConfig:
     phases: int = 32
     window: int = 16
     updates_per_period: int = 8
-    method: str = "ls"
+    method: str = "opt"
     max_rank: int = 12
     noise_std: float | tuple[float, ...] | None = None
     scale_groups: tuple[int, ...] | None = None
@@ -239,16 +245,20 @@ class StreamingEstimator:
         row_noise = None if noise is None else np.tile(noise / scale, self.cfg.phases)
         if noise is not None and not noise.any():
             row_noise = None  # noise-free whole-sample snapshots: round-off floor only
-        fit = fit_period_map(Z, self.cfg.forcing, row_noise, self.cfg.method, self.cfg.max_rank)
+        cfg = self.cfg
+        base = "ls" if cfg.method == "opt" else cfg.method  # the refinement runs once, on the chosen window
+        fit = fit_period_map(Z, cfg.forcing, row_noise, base, cfg.max_rank)
         # Modes that decay fast are seen only in the oldest columns; if they leave the model unresolved, a window
         # that starts later (without them) may resolve what remains: the slow modes that decide stability.
-        drop = 1
-        while self.cfg.adaptive_start and fit.excited and not fit.resolved and Z.shape[1] - drop >= 4:
-            later = fit_period_map(Z[:, drop:], self.cfg.forcing, row_noise, self.cfg.method, self.cfg.max_rank)
+        drop, used = 1, 0
+        while cfg.adaptive_start and fit.excited and not fit.resolved and Z.shape[1] - drop >= 4:
+            later = fit_period_map(Z[:, drop:], cfg.forcing, row_noise, base, cfg.max_rank)
             if later.resolved:
-                fit = later
+                fit, used = later, drop
                 break
             drop += 1
+        if cfg.method == "opt":
+            fit = refine_fit(Z[:, used:], fit, cfg.forcing)
         verdict = self.flag.update(fit)
         est = Estimate(t, Z.shape[1] - 1, fit, verdict, self.flag.unstable, self.flag.confidence(fit))
         self.latest = est
