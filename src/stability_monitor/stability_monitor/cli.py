@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from amb_dynamics.errors import AmbError
+from amb_dynamics.estimate import METHODS
 
 from .pipeline import FORCING_CHOICES, MonitorSettings
 
@@ -33,7 +34,12 @@ def analyze_parser() -> argparse.ArgumentParser:
     p.add_argument("--phases", type=int, default=32)
     p.add_argument("--window", type=int, default=16, help="periods in the moving window")
     p.add_argument("--updates-per-period", type=int, default=8)
-    p.add_argument("--method", default="ls", choices=("ls", "tls"))
+    p.add_argument(
+        "--method",
+        default="opt",
+        choices=METHODS,
+        help="opt: LS refined by variable projection (default); ls: least squares; tls: total least squares",
+    )
     p.add_argument("--noise-std", type=float, default=-1.0, help="measurement noise std (negative: estimate)")
     p.add_argument("--margin", type=float, default=0.02)
     p.add_argument("--hysteresis", type=float, default=0.02)

@@ -34,6 +34,7 @@ from std_msgs.msg import Bool, Float64MultiArray
 
 import amb_ros.messages as m
 from amb_dynamics.errors import InputError
+from amb_dynamics.estimate import METHODS
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode, lower_priority
@@ -62,7 +63,8 @@ def specs() -> list[ParamSpec]:
         ParamSpec("phases", 32, "phases sampled per period", "", 1, 4096),
         ParamSpec("window_periods", 16, "periods in the moving window", "", 3, 10000),
         ParamSpec("updates_per_period", 8, "refits per period", "", 1, 4096),
-        ParamSpec("method", "ls", "identification: least squares or total least squares", choices=("ls", "tls")),
+        ParamSpec("method", "opt", "identification: LS refined by variable projection (opt), least squares (ls) or "
+                  "total least squares (tls)", choices=METHODS),
         ParamSpec("max_rank", 12, "largest number of modes identified", "", 1, 1000),
         ParamSpec("noise_std", -1.0, "measurement noise std of every channel; negative = estimate from the data",
                   "signal units", -1.0, 1e9),

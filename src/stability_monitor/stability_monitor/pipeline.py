@@ -50,7 +50,7 @@ class MonitorSettings:
     phases: int = 32
     window: int = 16
     updates_per_period: int = 8
-    method: str = "ls"
+    method: str = "opt"
     max_rank: int = 12
     noise_std: float = -1.0
     margin: float = 0.02
