@@ -7,25 +7,26 @@ excitation injection) and 0.1 % measurement noise (of each channel's RMS); the m
 settings (sensor-only unless said otherwise) and estimates the noise level itself.
 
 - detection: pitch 0.6 rad at omega = pi/(712 Ts) = 22.06 rad/s, rho = 1.0512 per period T = pi/omega;
-  latency = first time the latched flag is up, from the start of the run, in periods T (goal: <= 8 in >= 99 %;
-  in periods of the base motion, 2 pi/omega = 2 T, the latencies are half as many).
+  latency = first time the latched flag is up, from the start of the run, in periods T.  The issue's goal is
+  <= 8 base-motion periods (2 pi/omega = 2 T, so 16 T) in >= 99 % of runs; within 8 T is printed too.
 - false alarms: pitch 0.3 rad at omega = pi/(641 Ts) = 24.51 rad/s, rho = 0.99879 (closer to 1 than the
   issue's 0.99, hence stricter), 50 periods per run (goal: 0 alarms in 100 runs).
 
 Scenarios: (A) ``base_forcing=true``: the base motion starts with its inertial load (forced response 50-70 mm
 at the AMBs in this linear model; its RMS sets the 0.1 % noise) plus a knock at the disk of 0.1-10x that
 amplitude; the forcing model is 'alternating'.  (B) the seed config (no base forcing, forcing model 'none'), a
-knock at the disk of 0.1-1 mm in a random direction: every mode is excited, and the estimator needs about as
-many periods as there are visible modes (plus one) before its fit is resolved, so detection takes longer.
-Then the estimator's cost per update and the lockstep loop's steps/s without and with a monitor process beside
-it (amb-rig, alternating runs).
+knock at the disk of 0.1-1 mm in a random direction: every mode is excited, the excitation's fast response is
+noise on every period's snapshots, and a weak knock leaves the growing mode under a decaying one of the same
+angle; the plateau floor and the variable-projection refinement ('opt') are what make (B) meet the goal.
+Then the estimator's cost per update (scenario A's window, and the mean over scenario-B runs, where the
+refinement runs) and the lockstep loop's steps/s of amb-rig with its own monitor and with ``--no-monitor``
+(alternating runs).
 """
 
 from __future__ import annotations
 
 import json
 import re
-import signal
 import subprocess
 import sys
 import time
@@ -137,18 +138,22 @@ def monte_carlo(case: Case, runs: int, periods: int, mode: str, seed: int, detec
     return out
 
 
-def cost_per_update(case: Case) -> dict:
-    """Wall time of one refit (sensor-only and full state) and of one sample push, averaged."""
+def cost_per_update(case: Case, modes=("sensor", "full"), runs: int = 1, periods: int = 20) -> dict:
+    """Wall time of one refit (on the last window) and of one sample push incl. refits, averaged over runs."""
     rng = np.random.default_rng(7)
     out = {}
-    for mode in ("sensor", "full"):
-        t, S, groups = case.run(rng, 20, mode)
-        cfg = EstimatorConfig(case.T, case.loop.Ts, forcing=case.forcing, scale_groups=groups)
-        est = StreamingEstimator(cfg, S.shape[1])
-        t0 = time.perf_counter()
-        for k in range(t.size):
-            est.push(t[k], S[k])
-        per_sample = (time.perf_counter() - t0) / t.size
+    for mode in modes:
+        elapsed, samples = 0.0, 0
+        for _ in range(runs):
+            t, S, groups = case.run(rng, periods, mode)
+            cfg = EstimatorConfig(case.T, case.loop.Ts, forcing=case.forcing, scale_groups=groups)
+            est = StreamingEstimator(cfg, S.shape[1])
+            t0 = time.perf_counter()
+            for k in range(t.size):
+                est.push(t[k], S[k])
+            elapsed += time.perf_counter() - t0
+            samples += t.size
+        per_sample = elapsed / samples
         Z, scale = est.window_matrix()
         noise = np.tile(est.noise_estimate() / scale, cfg.phases)
         batches = []  # best of 5 batches: the machine is shared, the minimum is the estimator's own cost
@@ -167,6 +172,13 @@ def cost_per_update(case: Case) -> dict:
     return out
 
 
+def all_costs() -> dict:
+    """Scenario A (sensor-only and full state, one run) and scenario B (sensor-only, mean over 6 runs)."""
+    a = cost_per_update(Case(*DETECT, base_forcing=True))
+    b = cost_per_update(Case(*DETECT), ("sensor",), runs=6, periods=18)
+    return {"A sensor": a["sensor"], "A full": a["full"], "B sensor": b["sensor"]}
+
+
 BIN = Path(sys.executable).parent
 RIG_T = STABLE[1] * 2e-4  # the stable case's period at 5 kHz: the monitor gets it as a parameter (no waiting)
 RIG_ARGS = ["--duration", "2.0", "--motion", "pitch", "--amplitude", "0.3", "--frequency", repr(np.pi / RIG_T),
@@ -175,25 +187,23 @@ RIG_ARGS = ["--duration", "2.0", "--motion", "pitch", "--amplitude", "0.3", "--f
 
 
 def rig_steps_per_s(with_monitor: bool) -> tuple[float, str]:
-    """One lockstep amb-rig run (2 s simulated), optionally with a monitor process beside it."""
-    env = child_env()
-    mon = None
-    if with_monitor:
-        cmd = [str(BIN / "amb-monitor"), "--ros-args", "-p", f"period_s:={RIG_T!r}"]
-        mon = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        time.sleep(3.0)  # let it start and be discovered before the plant's first sample
-    try:
-        out = subprocess.run([str(BIN / "amb-rig"), "run", "--json", *RIG_ARGS], env=env, capture_output=True,
-                             text=True, timeout=600)  # fmt: skip
-    finally:
-        line = ""
-        if mon is not None:
-            mon.send_signal(signal.SIGINT)
-            text, _ = mon.communicate(timeout=30)
-            line = next((x for x in text.splitlines() if x.startswith("stability_monitor:")), text.strip()[-200:])
+    """One lockstep amb-rig run (2 s simulated): with amb-rig's own monitor (given the period, so it does not
+    wait for /base/imu), or with ``--no-monitor``; returns steps/s and the monitor's closing line."""
+    # with a period the monitor does not subscribe /base/imu, so base_motion must not wait for it (amb-rig's
+    # reader gate counts the monitor among the IMU readers whatever its period_s)
+    mon = ["--param", f"monitor:period_s={RIG_T!r}", "--param", "base_motion:min_imu_subscribers=1"]
+    mon = mon if with_monitor else ["--no-monitor"]
+    out = subprocess.run([str(BIN / "amb-rig"), "run", "--json", *RIG_ARGS, *mon], env=child_env(),
+                         capture_output=True, text=True, timeout=600)  # fmt: skip
     summary = json.loads(out.stdout)
     if not summary["ok"]:
         raise RuntimeError(f"amb-rig failed: {summary['errors']}")
+    line = ""
+    if with_monitor:
+        node = summary["nodes"]["monitor"]
+        v = node["values"]
+        line = (f"stability_monitor: {v.get('samples', '0')} samples ({v.get('samples lost', '?')} lost), "
+                f"{v.get('refits', '0')} refits; {node['message']}")  # fmt: skip
     return summary["steps_per_s"], line
 
 
@@ -246,7 +256,7 @@ def main() -> dict:
         "A_full_state": {"detection": monte_carlo(det_a, 50, 12, "full", 3, True),
                          "false_alarms": monte_carlo(stab_a, 20, 50, "full", 4, False)},
         "B_sensor": {"detection": monte_carlo(det_b, 100, 18, "sensor", 5, True),
-                     "false_alarms": monte_carlo(stab_b, 50, 50, "sensor", 6, False)},
+                     "false_alarms": monte_carlo(stab_b, 100, 50, "sensor", 6, False)},
         "B_sensor_no_excitation": {"detection": monte_carlo(det_b0, 100, 18, "sensor", 7, True)},
         "cost": cost_in_node_setting(),
         "lockstep": lockstep_side_by_side(),
@@ -266,7 +276,7 @@ def main() -> dict:
           f" max {d['latency_periods_max']:.2f} periods T")  # fmt: skip
     for mode, c in res["cost"].items():
         rows, cols = c["window_shape"]
-        print(f"  cost {mode:6s}: refit {c['refit_ms']:.2f} ms on a {rows}x{cols} window;"
+        print(f"  cost {mode:8s}: refit {c['refit_ms']:.2f} ms on a {rows}x{cols} window;"
               f" {c['per_sample_us_incl_refits']:.1f} us per sample incl. refits ="
               f" {100 * c['fraction_of_lockstep_step']:.1f} % of a lockstep step at"
               f" {LOCKSTEP_GOAL_STEPS_S:.0f} steps/s")  # fmt: skip
@@ -280,6 +290,6 @@ def main() -> dict:
 
 if __name__ == "__main__":
     if sys.argv[1:] == ["--cost"]:
-        print(json.dumps(cost_per_update(Case(*DETECT, base_forcing=True))))
+        print(json.dumps(all_costs()))
     else:
         main()
