@@ -160,7 +160,10 @@ def _condition(prob: _Problem, p: np.ndarray) -> float:
     """Condition number of the fitted sequences (rows of [V; E] scaled to unit norm)."""
     upper, real = prob.unpack(p)
     W = np.vstack([_basis(upper, real, prob.n)[0], prob.E])
-    W = W / np.linalg.norm(W, axis=1, keepdims=True)
+    norms = np.linalg.norm(W, axis=1, keepdims=True)
+    if not (norms > 0).all():
+        return float("inf")  # a vanished sequence (e.g. a pair that became real): not identified
+    W = W / norms
     sv = np.linalg.svd(W, compute_uv=False)
     return float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
 
