@@ -189,9 +189,7 @@ RIG_ARGS = ["--duration", "2.0", "--motion", "pitch", "--amplitude", "0.3", "--f
 def rig_steps_per_s(with_monitor: bool) -> tuple[float, str]:
     """One lockstep amb-rig run (2 s simulated): with amb-rig's own monitor (given the period, so it does not
     wait for /base/imu), or with ``--no-monitor``; returns steps/s and the monitor's closing line."""
-    # with a period the monitor does not subscribe /base/imu, so base_motion must not wait for it (amb-rig's
-    # reader gate counts the monitor among the IMU readers whatever its period_s)
-    mon = ["--param", f"monitor:period_s={RIG_T!r}", "--param", "base_motion:min_imu_subscribers=1"]
+    mon = ["--param", f"monitor:period_s={RIG_T!r}"]
     mon = mon if with_monitor else ["--no-monitor"]
     out = subprocess.run([str(BIN / "amb-rig"), "run", "--json", *RIG_ARGS, *mon], env=child_env(),
                          capture_output=True, text=True, timeout=600)  # fmt: skip

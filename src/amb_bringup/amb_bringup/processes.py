@@ -83,10 +83,11 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
     if monitor and args.no_plant:
         per["monitor"].setdefault("input", "displacement")  # a real rig measures the AMB displacements only
     sensor_only = monitor and per["monitor"].get("input") == "displacement"
+    monitor_imu = monitor and not per["monitor"].get("period_s")  # a given period: the monitor reads no /base/imu
     gates = {
         ("plant", "min_subscribers"): 1 + bag + sensor_only,  # the controller, the recorder, the monitor
         ("plant", "min_state_subscribers"): bag + (monitor and not sensor_only),
-        ("base_motion", "min_imu_subscribers"): (0 if args.no_plant else 1) + bag + monitor,
+        ("base_motion", "min_imu_subscribers"): (0 if args.no_plant else 1) + bag + monitor_imu,
         ("base_motion", "min_acceleration_subscribers"): (0 if args.no_plant else 1) + bag,
     }
     for (node, key), value in gates.items():
