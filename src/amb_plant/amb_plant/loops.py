@@ -62,14 +62,10 @@ def run_lockstep(node) -> None:
 
 
 def lockstep_timeout_message(node, k: int, have_base: bool, timeout: float) -> str:
-    what = (
-        []
-        if have_base
-        else [
-            f"base sample ({m.IMU}, {m.ANGULAR_ACCELERATION}; base_motion's lead_samples must "
-            f"be at least clock_every = {node.p['clock_every']})"
-        ]
-    )
+    what = []
+    if not have_base:
+        what.append(f"base sample ({m.IMU}, {m.ANGULAR_ACCELERATION}; base_motion's lead_samples must be at least "
+                    f"clock_every = {node.p['clock_every']})")  # fmt: skip
     if k not in node.commands:
         what.append(f"command on {m.CURRENT} (controller gone?)")
     return f"no {' or '.join(what)} for step {k} (t = {k * node.Ts:.6g} s) within {timeout:g} s"
