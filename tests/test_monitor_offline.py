@@ -2,8 +2,9 @@
 
 Bags are written here in rosbag2 layout (MCAP + metadata.yaml) from the lockstep-equivalent simulation of the
 seed rotor's unstable pitch case (0.6 rad, T = 718 Ts, rho = 1.0617), with the messages the plant and the base
-motion publish (JointState state and displacement, Imu).  The analysis must reproduce the estimator run directly
-on the same samples, flag the instability, and give the model value of the recorded motion.
+motion publish (state blocks as JointTrajectory, JointState displacement, Imu; bags recorded before the state came
+in blocks had one JointState per sample, still read).  The analysis must reproduce the estimator run directly on
+the same samples, flag the instability, and give the model value of the recorded motion.
 """
 
 from __future__ import annotations
@@ -14,9 +15,11 @@ import subprocess
 import numpy as np
 import pytest
 import yaml
+from builtin_interfaces.msg import Duration
 from mcap.writer import CompressionType, Writer
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu, JointState
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from amb_dynamics.config import load_config
 from amb_dynamics.errors import InputError
@@ -51,8 +54,27 @@ def ns(t: float, Ts: float) -> int:
     return round(t / Ts) * round(Ts * 1e9)  # the nodes' stamps: k * Ts_ns, exact integers
 
 
-def write_bag(path, data, topics=("state", "displacement", "imu"), truncate_to=None):
-    """A rosbag2-layout bag folder with the plant's and base motion's messages (raw MCAP writer)."""
+def state_blocks(data, block: int):
+    """(log time, CDR) of the plant's /amb_plant/state blocks, built with rclpy's message classes."""
+    run, model, Ts = data["run"], data["model"], data["Ts"]
+    out = []
+    for a in range(0, run.t.size, block):
+        ks = range(a, min(a + block, run.t.size))
+        msg = JointTrajectory(joint_names=list(model.dof_names))
+        t0 = ns(run.t[a], Ts)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t0, 1_000_000_000)
+        for k in ks:
+            sec, nsec = divmod(ns(run.t[k], Ts) - t0, 1_000_000_000)
+            msg.points.append(JointTrajectoryPoint(positions=run.x[k, : model.n].tolist(),
+                                                   velocities=run.x[k, model.n :].tolist(),
+                                                   time_from_start=Duration(sec=sec, nanosec=nsec)))  # fmt: skip
+        out.append((ns(run.t[ks[-1]], Ts) + 1, serialize_message(msg)))
+    return out
+
+
+def write_bag(path, data, topics=("state", "displacement", "imu"), truncate_to=None, state_block=25):
+    """A rosbag2-layout bag folder with the plant's and base motion's messages (raw MCAP writer); state_block=0:
+    one JointState per state sample, as bags were recorded before the state came in blocks."""
     path.mkdir()
     mcap_path = path / f"{path.name}_0.mcap"
     run, model = data["run"], data["model"]
@@ -61,20 +83,25 @@ def write_bag(path, data, topics=("state", "displacement", "imu"), truncate_to=N
         w = Writer(f, compression=CompressionType.ZSTD)
         w.start(profile="ros2", library="test")
         chans = {}
-        for key, topic, typ in (("state", "/amb_plant/state", "sensor_msgs/msg/JointState"),
+        state_type = "trajectory_msgs/msg/JointTrajectory" if state_block else "sensor_msgs/msg/JointState"
+        for key, topic, typ in (("state", "/amb_plant/state", state_type),
                                 ("displacement", "/amb/displacement", "sensor_msgs/msg/JointState"),
                                 ("imu", "/base/imu", "sensor_msgs/msg/Imu")):  # fmt: skip
             if key in topics:
                 sid = w.register_schema(name=typ, encoding="ros2msg", data=b"")
                 chans[key] = w.register_channel(topic=topic, message_encoding="cdr", schema_id=sid)
+        blocks = state_blocks(data, state_block) if state_block and "state" in chans else []
         for k, t in enumerate(run.t):
             stamp = ns(t, data["Ts"])
+            while blocks and blocks[0][0] <= stamp + 1:
+                log_time, raw = blocks.pop(0)
+                w.add_message(chans["state"], log_time=log_time, data=raw, publish_time=log_time)
             js.header.stamp.sec, js.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
             imu.header.stamp = js.header.stamp
             if "imu" in chans:
                 imu.angular_velocity.x, imu.angular_velocity.y, imu.angular_velocity.z = map(float, data["Omega"][k])
                 w.add_message(chans["imu"], log_time=stamp, data=serialize_message(imu), publish_time=stamp)
-            if "state" in chans:
+            if "state" in chans and not state_block:
                 js.name = list(model.dof_names)
                 js.position = run.x[k, : model.n].tolist()
                 js.velocity = run.x[k, model.n :].tolist()
@@ -147,6 +174,18 @@ def test_analyze_bag_json_and_plot(bag, run_data, venv_bin, tmp_path):
     times = [e["time_s"] for e in doc["estimates"]]
     assert times == sorted(times) and len(times) > 40
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_analyze_reads_bags_with_one_state_message_per_sample(bag, run_data, venv_bin, tmp_path):
+    """A bag recorded when /amb_plant/state was a JointState per sample gives the same analysis as the blocks."""
+    legacy = write_bag(tmp_path / "legacy", run_data, state_block=0)
+    docs = []
+    for b in (bag, legacy):
+        res = monitor(venv_bin, "analyze", b, "--json")
+        assert res.returncode == 0, res.stderr
+        docs.append(json.loads(res.stdout))
+    assert docs[0]["samples"] == docs[1]["samples"] == run_data["run"].t.size
+    assert docs[0]["estimates"] == docs[1]["estimates"] and docs[0]["verdict"] == "unstable"
 
 
 def test_analyze_sensor_only_and_table(bag, run_data, venv_bin):

@@ -157,19 +157,23 @@ def test_bad_parameters_exit_with_one_line(param, message, venv_bin, tmp_path):
 
 def test_non_finite_samples_are_rejected(listener, venv_bin, tmp_path):
     """A NaN state never reaches the estimator: counted as rejected, reported in the diagnostics."""
+    from builtin_interfaces.msg import Duration
     from rclpy.node import Node
-    from sensor_msgs.msg import JointState
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
     from amb_ros.qos import lockstep_qos
 
     node: Node = listener["node"]
-    pub = node.create_publisher(JointState, "/amb_plant/state", lockstep_qos())
+    pub = node.create_publisher(JointTrajectory, "/amb_plant/state", lockstep_qos())
     with spawn([str(venv_bin / "amb-monitor"), "--ros-args", "-p", "diagnostics_period_s:=0.2"],
                tmp_path / "monitor.log") as mon:  # fmt: skip
         assert listener["spin_until"](lambda: listener["diag"] and pub.get_subscription_count() > 0, 30), mon.text()
-        for k in range(5):
-            msg = JointState(name=["mode1", "mode2"], position=[0.0, float("nan")], velocity=[0.0, 0.0])
-            msg.header.stamp.nanosec = k * 200_000
+        for k in range(5):  # blocks of two samples, the second with a NaN
+            msg = JointTrajectory(joint_names=["mode1", "mode2"])
+            msg.points = [JointTrajectoryPoint(positions=[0.0, 0.0], velocities=[0.0, 0.0]),
+                          JointTrajectoryPoint(positions=[0.0, float("nan")], velocities=[0.0, 0.0],
+                                               time_from_start=Duration(nanosec=200_000))]  # fmt: skip
+            msg.header.stamp.nanosec = k * 400_000
             pub.publish(msg)
 
         def rejected():

@@ -65,6 +65,61 @@ def test_slow_path_reorders_and_rejects():
         dec(b"\x00\x01\x00\x00garbage")
 
 
+def trajectory(names, rows, stamps):
+    """A /amb_plant/state block built with rclpy's classes (rows = [q, dq] per sample, stamps in ns)."""
+    from builtin_interfaces.msg import Duration
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+    n = len(names)
+    msg = JointTrajectory(joint_names=list(names))
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(stamps[0]), 10**9)
+    for row, t in zip(rows, stamps, strict=True):
+        sec, nsec = divmod(int(t - stamps[0]), 10**9)
+        msg.points.append(JointTrajectoryPoint(positions=[float(v) for v in row[:n]],
+                                               velocities=[float(v) for v in row[n:]],
+                                               time_from_start=Duration(sec=sec, nanosec=nsec)))  # fmt: skip
+    return msg
+
+
+def test_state_blocks_round_trip_through_rclpy_and_reject_bad_blocks():
+    from trajectory_msgs.msg import JointTrajectory
+
+    from amb_ros.state_block import StateBlockDecoder, StateBlockWriter
+
+    names = ("mode1", "mode2", "mode3")
+    rng = np.random.default_rng(1)
+    rows = rng.standard_normal((11, 6))
+    stamps = 3_999_999_000 + 200_000 * np.arange(11)  # crosses a whole second inside the first block
+    writer = StateBlockWriter(names, 4)
+    blocks = [b for t, x in zip(stamps, rows, strict=True) if (b := writer.add(int(t), x)) is not None]
+    blocks.append(writer.flush())
+    assert writer.flush() is None and len(blocks) == 3  # 4 + 4 + 3 samples
+    msgs = [deserialize_message(b, JointTrajectory) for b in blocks]
+    assert [len(msg.points) for msg in msgs] == [4, 4, 3] and list(msgs[2].joint_names) == list(names)
+    assert msgs[0].points[3].time_from_start.nanosec == 600_000 and msgs[1].header.stamp.sec == 4
+    assert np.array_equal([p.positions[1] for msg in msgs for p in msg.points], rows[:, 1])
+    assert np.array_equal([p.velocities[2] for msg in msgs for p in msg.points], rows[:, 5])
+    dec = StateBlockDecoder(names, 4)
+    assert dec.codec.decode(serialize_message(msgs[0])) is not None  # rclpy's padding differs: still the fast path
+    for a, msg in zip((0, 4, 8), msgs, strict=True):  # rclpy's own buffers: fast path (4) and slow path (3)
+        got_t, got_x = dec(serialize_message(msg))
+        assert np.array_equal(got_t, stamps[a : a + len(msg.points)]) and np.array_equal(got_x, rows[a : a + 4])
+    perm = ("mode2", "mode3", "mode1")  # names identify the columns: a permutation is reordered
+    swapped = trajectory(perm, rows[:4][:, [1, 2, 0, 4, 5, 3]], stamps[:4])
+    assert np.array_equal(dec(serialize_message(swapped))[1], rows[:4])
+    bad_rows = rows[:4].copy()
+    bad_rows[2, 4] = np.inf
+    for bad, reason in [
+        (trajectory(names, bad_rows, stamps[:4]), "non-finite"),
+        (trajectory(("a", "b", "c"), rows[:4], stamps[:4]), "joint names"),
+        (trajectory(names, rows[:4], stamps[[0, 2, 1, 3]]), "strictly increasing"),
+        (trajectory(names, rows[:4, :5], stamps[:4]), "velocities for 3 names"),
+        (JointTrajectory(joint_names=list(names)), "without points"),
+    ]:
+        with pytest.raises(m.Rejected, match=reason):
+            dec(serialize_message(bad))
+
+
 @pytest.mark.ros
 def test_controller_rejects_bad_samples_over_dds(tmp_path, venv_bin):
     import rclpy

@@ -84,8 +84,9 @@ def stamp(msg) -> int:
 
 def lockstep_run(tmp_path, venv_bin, extra=()):
     from sensor_msgs.msg import JointState
+    from trajectory_msgs.msg import JointTrajectory
 
-    rec = DdsRecorder({"/amb/displacement": JointState, "/amb_plant/state": JointState})
+    rec = DdsRecorder({"/amb/displacement": JointState, "/amb_plant/state": JointTrajectory})
     try:
         code, summary, text = run_rig(
             tmp_path,
@@ -104,8 +105,18 @@ def lockstep_run(tmp_path, venv_bin, extra=()):
         rec.close()
     assert code == 0, text[-2000:]
     disp = {stamp(m): np.array(m.position) for m in rec.messages["/amb/displacement"]}
-    state = {stamp(m): np.concatenate([m.position, m.velocity]) for m in rec.messages["/amb_plant/state"]}
+    state = {}  # blocks of consecutive samples: point stamp = header stamp + time_from_start
+    for m in rec.messages["/amb_plant/state"]:
+        for p in m.points:
+            state[stamp(m) + p.time_from_start.sec * 10**9 + p.time_from_start.nanosec] = np.concatenate(
+                [p.positions, p.velocities]
+            )
     return summary, disp, state
+
+
+def rec_blocks(samples: int, block: int) -> list[int]:
+    """Sizes of the state blocks of a run of ``samples`` samples."""
+    return [min(block, samples - a) for a in range(0, samples, block)]
 
 
 def offline(steps: int):
@@ -141,6 +152,9 @@ def test_lockstep_equals_offline_and_two_runs_are_identical(tmp_path, venv_bin):
     plant = s1["nodes"]["plant"]["values"]
     assert int(plant["published /clock"]) == len([k for k in range(steps + 1) if k % 5 == 0 or k == steps])
     assert int(s1["nodes"]["base_motion"]["values"]["received /clock"]) == int(plant["published /clock"])
+    # the state in blocks of state_block = 25 samples (the last one shorter), every sample exactly once
+    assert sorted(state1) == [k * TS_NS for k in range(steps + 1)]
+    assert int(plant["published /amb_plant/state"]) == len(rec_blocks(steps + 1, 25))
 
     # the second run under SCHED_FIFO (the speed option; where refused, the nodes say so and run normally):
     # scheduling changes the timing only, never the numbers

@@ -21,13 +21,14 @@ STEP_S = 2e-4  # simulated step (5 kHz lockstep)
 CHANNELS = ["amb1_y", "amb1_z", "amb5_y", "amb5_z"]
 DOFS = [f"n{n}_{d}" for n in range(1, 8) for d in ("v", "w", "ty", "tz")]  # 28 generalised coordinates
 MULTIPLIER_EVERY = 50
+STATE_BLOCK = 5  # /amb_plant/state: a block of the samples since the last one, every STATE_BLOCK steps
 TOPICS = {
     "/clock": "rosgraph_msgs/msg/Clock",
     "/base/imu": "sensor_msgs/msg/Imu",
     "/base/angular_acceleration": "geometry_msgs/msg/Vector3Stamped",
     "/amb/displacement": "sensor_msgs/msg/JointState",
     "/amb/current": "sensor_msgs/msg/JointState",
-    "/amb_plant/state": "sensor_msgs/msg/JointState",
+    "/amb_plant/state": "trajectory_msgs/msg/JointTrajectory",
     "/stability/multipliers": "std_msgs/msg/Float64MultiArray",
     "/stability/unstable": "std_msgs/msg/Bool",
     "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
@@ -47,6 +48,24 @@ def _header(k: int, frame: str):
 def _joint_state(k, names, position=EMPTY, velocity=EMPTY, effort=EMPTY):
     return T["sensor_msgs/msg/JointState"](header=_header(k, ""), name=list(names), position=position,
                                            velocity=velocity, effort=effort)  # fmt: skip
+
+
+def _state_block(steps: range):
+    point = T["trajectory_msgs/msg/JointTrajectoryPoint"]
+    t0 = round(steps[0] * STEP_S * 1e9)
+    points = []
+    for j in steps:
+        dt = round(j * STEP_S * 1e9) - t0
+        points.append(
+            point(
+                positions=1e-6 * np.sin(np.arange(28) + j),
+                velocities=1e-4 * np.cos(np.arange(28) + j),
+                accelerations=EMPTY,
+                effort=EMPTY,
+                time_from_start=T["builtin_interfaces/msg/Duration"](sec=dt // 10**9, nanosec=dt % 10**9),
+            )
+        )
+    return T["trajectory_msgs/msg/JointTrajectory"](header=_header(steps[0], ""), joint_names=DOFS, points=points)
 
 
 def step_messages(k: int) -> list[tuple[str, str, object]]:
@@ -71,9 +90,11 @@ def step_messages(k: int) -> list[tuple[str, str, object]]:
          T["geometry_msgs/msg/Vector3Stamped"](header=_header(k, "base"), vector=v3(x=0.0, y=0.0, z=-180.0 * a))),
         ("/amb/displacement", TOPICS["/amb/displacement"], _joint_state(k, CHANNELS, position=1e-5 * np.sin(phase))),
         ("/amb/current", TOPICS["/amb/current"], _joint_state(k, CHANNELS, effort=0.5 * np.cos(phase))),
-        ("/amb_plant/state", TOPICS["/amb_plant/state"],
-         _joint_state(k, DOFS, position=1e-6 * np.sin(np.arange(28) + k), velocity=1e-4 * np.cos(np.arange(28) + k))),
     ]  # fmt: skip
+    if k % STATE_BLOCK == 0:
+        out.append(
+            ("/amb_plant/state", TOPICS["/amb_plant/state"], _state_block(range(max(0, k - STATE_BLOCK + 1), k + 1)))
+        )
     if k % MULTIPLIER_EVERY == 0:
         dim = T["std_msgs/msg/MultiArrayDimension"]
         layout = T["std_msgs/msg/MultiArrayLayout"](dim=[dim(label="k", size=2, stride=4), dim(label="re_im", size=2,
@@ -120,6 +141,9 @@ def values(type_name: str, msg) -> tuple:
     if type_name == "sensor_msgs/msg/JointState":
         return (*stamp(msg), tuple(msg.name), *map(float, msg.position), *map(float, msg.velocity),
                 *map(float, msg.effort))  # fmt: skip
+    if type_name == "trajectory_msgs/msg/JointTrajectory":
+        return (*stamp(msg), tuple(msg.joint_names), *((p.time_from_start.sec, p.time_from_start.nanosec,
+                *map(float, p.positions), *map(float, p.velocities)) for p in msg.points))  # fmt: skip
     if type_name == "std_msgs/msg/Float64MultiArray":
         return (tuple((d.label, d.size, d.stride) for d in msg.layout.dim), *map(float, msg.data))
     if type_name == "std_msgs/msg/Bool":

@@ -5,20 +5,21 @@ Topics (layouts in docs/topics.md)
 publishes  /clock (lockstep)            rosgraph_msgs/Clock, t_k = k Ts every clock_every steps (default 5: a 1 kHz
                                         clock at 5 kHz) and at the last step: the plant is the clock master
 publishes  /amb/displacement            sensor_msgs/JointState: name = channels, position = measured y (m)
-publishes  /amb_plant/state             sensor_msgs/JointState: name = generalised coordinates (modes when
-                                        modal_cutoff is set, FE DOFs n<i>_v... otherwise), position = q,
-                                        velocity = dq/dt
+publishes  /amb_plant/state             trajectory_msgs/JointTrajectory: every sample, state_block (25) per
+                                        message: joint_names = generalised coordinates (modes when modal_cutoff is
+                                        set, FE DOFs n<i>_v... otherwise), points[i] = (q, dq/dt) of one sample,
+                                        time_from_start = its stamp - header stamp (amb_ros.state_block)
 publishes  /diagnostics                 steps, rates, peak displacement vs air gap, saturation, command
                                         timeouts, counts published/received/rejected
 subscribes /amb/current                 sensor_msgs/JointState: effort = coil current (A), stamp = the sample
 subscribes /base/imu, /base/angular_acceleration   base rates Omega, dOmega held over each step
 
-Lockstep: at step k publish y_k, the state and /clock (stamp t_k), wait for the base sample k and the command
-stamped t_k (waiting on the command alone once the base sample is in), then x_{k+1} = E_k x_k + Gamma_k i_k + g_k
-(``PlantStepper``) - exactly ``SampledLoop.simulate``.  The matrices of step k are computed while the controller
-works on y_k.  No command within command_timeout_s
-(controller gone): ERROR diagnostic, exit code 3.  Realtime: wall-clock ticks, latest command and base sample,
-sensor model and the command policy of :mod:`amb_plant.sensor`.
+Lockstep: at step k publish y_k, /clock and (every state_block steps) the state (stamp t_k), wait for the base
+sample k and the command stamped t_k (waiting on the command alone once the base sample is in), then
+x_{k+1} = E_k x_k + Gamma_k i_k + g_k (``PlantStepper``) - exactly ``SampledLoop.simulate``.  The matrices of step
+k are computed while the controller works on y_k.  No command within command_timeout_s (controller gone): ERROR
+diagnostic, exit code 3.  Realtime: wall-clock ticks, latest command and base sample, sensor model and the
+command policy of :mod:`amb_plant.sensor`.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from geometry_msgs.msg import Vector3Stamped
 from rclpy.duration import Duration
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
+from trajectory_msgs.msg import JointTrajectory
 
 import amb_ros.messages as m
 from amb_dynamics.fe import dof_index
@@ -42,6 +44,7 @@ from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos
 from amb_ros.runtime import RunFailed, run_node
+from amb_ros.state_block import StateBlockWriter
 
 from .loops import run_lockstep, run_realtime
 from .sensor import CommandPolicy, SensorModel
@@ -74,7 +77,8 @@ def specs() -> list[ParamSpec]:
                   "model means nothing there)", "", 1.0, 1e12),
         ParamSpec("clock_every", 5, "lockstep: publish /clock every N steps (5 at 5 kHz = a 1 kHz clock; base_motion"
                   " runs lead_samples ahead of it)", "steps", 1, 10000),
-        ParamSpec("state_every", 1, "publish /amb_plant/state every N steps", "steps", 1, 1000000),
+        ParamSpec("state_block", 25, "samples per /amb_plant/state message (every sample is published; a block "
+                  "costs the loop one DDS delivery per reader instead of one per sample)", "samples", 1, 100000),
     ]  # fmt: skip
 
 
@@ -105,10 +109,10 @@ class PlantNode(RigNode):
         self.connect_s = 0.0
         qos = data_qos(self.mode, p["qos_depth"])
         self.disp_pub = self.create_publisher(JointState, m.DISPLACEMENT, qos)
-        self.state_pub = self.create_publisher(JointState, m.STATE, qos)
+        self.state_pub = self.create_publisher(JointTrajectory, m.STATE, qos)
         self.clock_pub = self.create_publisher(Clock, m.CLOCK, qos) if self.mode == "lockstep" else None
         self.disp_codec = m.joint_state_codec(self.channels, ("position",))
-        self.state_codec = m.joint_state_codec(self.model.dof_names, ("position", "velocity"))
+        self.state_block = StateBlockWriter(self.model.dof_names, p["state_block"])
         self.clock_codec = m.clock_codec()
         self.cmd_decoder = m.joint_state_decoder(self.channels, ("effort",))
         self.imu_decoder, self.acc_decoder = m.imu_decoder(), m.vector3_decoder()
@@ -206,10 +210,13 @@ class PlantNode(RigNode):
             self.sample_index.pop(stamp_ns - SAMPLE_MEMORY * self.Ts_ns, None)  # bounded memory (approximately)
             if len(self.sample_index) > 2 * SAMPLE_MEMORY:
                 self.sample_index = dict(list(self.sample_index.items())[-SAMPLE_MEMORY:])
-        if k % self.p["state_every"] == 0:
-            self.state_pub.publish(self.state_codec.encode(stamp_ns, self.x))
-            self.counters.published[m.STATE] += 1
         self.counters.published[m.DISPLACEMENT] += 1
+        self.publish_state(self.state_block.add(stamp_ns, self.x))
+
+    def publish_state(self, block: bytes | None) -> None:
+        if block is not None:
+            self.state_pub.publish(block)
+            self.counters.published[m.STATE] += 1
 
     def amplifier(self, current: np.ndarray) -> np.ndarray:
         peak = float(np.max(np.abs(current)))
@@ -268,6 +275,7 @@ class PlantNode(RigNode):
         except RunFailed as exc:
             self.failure, code = str(exc), 3
         self.t_wall1 = time.monotonic()
+        self.publish_state(self.state_block.flush())  # the samples of the last, shorter block
         for pub in (self.disp_pub, self.state_pub, self.clock_pub):  # slow readers (recorder) get the last samples
             if pub is not None:
                 pub.wait_for_all_acked(Duration(seconds=2.0))

@@ -1,7 +1,8 @@
 """Fast CDR encoding and decoding of fixed-layout messages (the lockstep hot path).
 
 A message whose strings and sequence lengths never change (a JointState with fixed channel names, an Imu with a
-fixed frame id) has a fixed CDR layout: only the header stamp and the float64 fields vary.  ``TemplateCodec``
+fixed frame id, a JointTrajectory block of a fixed number of points) has a fixed CDR layout: only the header stamp,
+the float64 fields and (optionally) builtin Duration/Time fields vary.  ``TemplateCodec``
 serializes one template message with rclpy, finds the byte offset of every varying float64 by writing unique
 sentinel values, and then encodes by patching a copy of the template and decodes by gathering those bytes.
 That is 3-5x cheaper than rclpy's message conversion, and exactly the bytes rclpy would produce.
@@ -21,6 +22,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 CDR_HEADER = 4  # encapsulation header (byte order, options) before the payload
 STAMP_OFFSET = CDR_HEADER  # std_msgs/Header comes first: int32 sec, uint32 nanosec
 NS_PER_S = 1_000_000_000
+TIME_DTYPE = np.dtype([("sec", "<i4"), ("nanosec", "<u4")])  # builtin_interfaces Time/Duration in CDR
 
 
 def split_ns(ns: int) -> tuple[int, int]:
@@ -43,16 +45,22 @@ class TemplateCodec:
     fields : list of (setter, count): ``setter(msg, values)`` writes ``count`` float64 values into the message.
         The varying values are the concatenation of all fields, in order.
     stamped : bool, the message starts with a std_msgs/Header whose stamp varies
+    times : (setter, count) or None: ``setter(msg, pairs)`` writes ``count`` (sec, nanosec) pairs into
+        builtin_interfaces Duration/Time fields that vary too (e.g. JointTrajectoryPoint.time_from_start)
     """
 
-    def __init__(self, msg_type, template, fields, stamped: bool = True):
+    def __init__(self, msg_type, template, fields, stamped: bool = True, times=None):
         self.msg_type, self.stamped = msg_type, stamped
         self.size = sum(count for _, count in fields)
+        self.n_times = times[1] if times else 0
         sentinels = _sentinels(self.size)
         pos = 0
         for setter, count in fields:
             setter(template, sentinels[pos : pos + count])
             pos += count
+        time_sentinels = [_time_sentinel(j) for j in range(self.n_times)]
+        if times:
+            times[0](template, time_sentinels)
         raw = serialize_message(template)
         if raw[:2] != b"\x00\x01":  # CDR little endian: the only byte order the offsets below are valid for
             raise RuntimeError("rmw serializes big-endian CDR; TemplateCodec supports little-endian only")
@@ -64,27 +72,44 @@ class TemplateCodec:
                 raise RuntimeError(f"cannot locate field bytes of {msg_type.__name__} in its CDR layout")
             offsets.append(at)
         self.gather = (np.asarray(offsets, dtype=np.intp)[:, None] + np.arange(8)).reshape(-1)
+        time_offsets = []
+        for pair in time_sentinels:
+            pattern = struct.pack("<iI", *pair)
+            at = raw.find(pattern)
+            if at < 0 or raw.find(pattern, at + 1) >= 0:
+                raise RuntimeError(f"cannot locate time field bytes of {msg_type.__name__} in its CDR layout")
+            time_offsets.append(at)
+        self.time_gather = (np.asarray(time_offsets, dtype=np.intp)[:, None] + np.arange(8)).reshape(-1)
         fixed = np.zeros(len(raw), dtype=bool)
         end = _mark_used(template, fixed, CDR_HEADER)  # padding bytes hold garbage: only used bytes are compared
         fixed[:CDR_HEADER] = True
-        if end > len(raw) or not fixed[self.gather].all():
+        if end > len(raw) or not fixed[self.gather].all() or not fixed[self.time_gather].all():
             raise RuntimeError(f"CDR layout walk of {msg_type.__name__} disagrees with rclpy's serialization")
         fixed[self.gather] = False
+        fixed[self.time_gather] = False
         if stamped:
             fixed[STAMP_OFFSET : STAMP_OFFSET + 8] = False
         # contiguous fixed byte ranges that a decodable buffer must reproduce exactly
         self._fixed_ranges = _ranges(fixed)
         zero = bytearray(raw)
         np.frombuffer(zero, dtype=np.uint8)[self.gather] = 0
+        np.frombuffer(zero, dtype=np.uint8)[self.time_gather] = 0
         self.template = bytes(zero)
         self._fixed_parts = [self.template[a:b] for a, b in self._fixed_ranges]
 
-    def encode(self, t_ns: int, values: np.ndarray) -> bytes:
-        """CDR bytes of the message with stamp ``t_ns`` (int ns) and the float64 ``values`` (self.size,)."""
+    def encode(self, t_ns: int, values: np.ndarray, times_ns: np.ndarray | None = None) -> bytes:
+        """CDR bytes of the message with stamp ``t_ns`` (int ns), the float64 ``values`` (self.size,) and, when the
+        layout has time fields, their values ``times_ns`` (self.n_times,) in integer ns (non-negative)."""
         buf = bytearray(self.template)
         if self.stamped:
             struct.pack_into("<iI", buf, STAMP_OFFSET, *split_ns(t_ns))
-        np.frombuffer(buf, dtype=np.uint8)[self.gather] = np.ascontiguousarray(values, dtype="<f8").view(np.uint8)
+        view = np.frombuffer(buf, dtype=np.uint8)
+        view[self.gather] = np.ascontiguousarray(values, dtype="<f8").reshape(-1).view(np.uint8)
+        if self.n_times:
+            ns = np.asarray(times_ns, dtype=np.int64)
+            pairs = np.empty(self.n_times, dtype=TIME_DTYPE)
+            pairs["sec"], pairs["nanosec"] = np.divmod(ns, NS_PER_S)
+            view[self.time_gather] = pairs.view(np.uint8)
         return bytes(buf)
 
     def decode(self, raw: bytes) -> tuple[int, np.ndarray] | None:
@@ -100,6 +125,11 @@ class TemplateCodec:
             t_ns = sec * NS_PER_S + nsec
         values = np.frombuffer(raw, dtype=np.uint8)[self.gather].view("<f8")
         return t_ns, values
+
+    def times(self, raw: bytes) -> np.ndarray:
+        """The time fields (int64 ns) of a buffer that :meth:`decode` accepted."""
+        pairs = np.frombuffer(raw, dtype=np.uint8)[self.time_gather].view(TIME_DTYPE)
+        return pairs["sec"].astype(np.int64) * NS_PER_S + pairs["nanosec"]
 
     def deserialize(self, raw: bytes):
         """Full rclpy deserialization (the slow path, for buffers that ``decode`` does not accept)."""
@@ -153,6 +183,11 @@ def _mark_used(msg, used: np.ndarray, pos: int) -> int:
 def _sentinels(n: int) -> list[float]:
     # distinct values whose 8-byte patterns cannot occur by accident in the rest of the buffer
     return [-1.2345678901234567e-300 * (k + 3) for k in range(n)]
+
+
+def _time_sentinel(j: int) -> tuple[int, int]:
+    # (sec, nanosec) patterns as unlikely as the float sentinels (nanosec beyond 1e9 is never a real time)
+    return -1_987_654_321 + 7 * j, 3_987_654_321 - 11 * j
 
 
 def _ranges(mask: np.ndarray) -> list[tuple[int, int]]:

@@ -20,7 +20,7 @@ from amb_dynamics.estimate_stream import Estimate
 from amb_dynamics.motion import AXES, BaseMotion, Harmonic
 
 from .bagread import BagReadError, bag_files, bag_topics, read_messages
-from .messages import JointStateInput
+from .messages import STATE_BLOCK_TYPE, JointStateInput, StateBlockInput
 from .pipeline import MonitorPipeline, MonitorSettings
 
 AXIS_OF_COMPONENT = {0: "roll", 1: "yaw", 2: "pitch"}  # Omega components x, y, z
@@ -75,7 +75,12 @@ def analyze_bag(path: Path, settings: MonitorSettings) -> Analysis:
         if m.IMU not in topics:
             raise BagReadError(f"{path} has no {m.IMU} topic to find the base period: give --period")
         wanted.append(m.IMU)
-    data_in = JointStateInput(("position",) if settings.sensor_only else ("position", "velocity"))
+    if settings.sensor_only:
+        data_in = JointStateInput(("position",))
+    elif topics[topic] == STATE_BLOCK_TYPE:
+        data_in = StateBlockInput()
+    else:  # a bag recorded when /amb_plant/state carried one JointState per sample
+        data_in = JointStateInput(("position", "velocity"))
     imu_decoder = m.imu_decoder()
     pipeline = MonitorPipeline(settings)
     estimates: list[Estimate] = []
@@ -89,20 +94,21 @@ def analyze_bag(path: Path, settings: MonitorSettings) -> Analysis:
                 imu_w.append(v[4:7].copy())
                 estimates.extend(pipeline.on_imu(t_ns * 1e-9, v[4:7]))
                 continue
-            t_ns, v = data_in(raw)
+            stamps, rows = data_in.samples(raw)
         except m.Rejected:
             rejected[name] += 1
             continue
         if pipeline.scale_groups is None:
             pipeline.scale_groups = data_in.scale_groups()
-        t = t_ns * 1e-9
-        if last_t is not None and t > last_t and len(spacing) < 64:
-            spacing.append(t - last_t)
-        try:
-            estimates.extend(pipeline.on_sample(t, v))
-        except InputError as exc:
-            raise BagReadError(f"{path}: {topic}: {exc}") from None
-        last_t = t
+        for t_ns, v in zip(stamps.tolist(), rows, strict=True):
+            t = t_ns * 1e-9
+            if last_t is not None and t > last_t and len(spacing) < 64:
+                spacing.append(t - last_t)
+            try:
+                estimates.extend(pipeline.on_sample(t, v))
+            except InputError as exc:
+                raise BagReadError(f"{path}: {topic}: {exc}") from None
+            last_t = t
     if pipeline.samples == 0:
         raise BagReadError(f"{path} holds no usable {topic} message")
     return Analysis(

@@ -1,8 +1,11 @@
-"""Message glue of the monitor: the JointState input whose channel names are learnt, and the multiplier array.
+"""Message glue of the monitor: the inputs whose channel names are learnt, and the multiplier array.
 
-The monitor does not assume the plant's configuration: the first JointState fixes the channel names (and so the
-layout); later messages are decoded with ``amb_ros``'s fast fixed-layout codec, reordered by name if needed, and
-rejected (never used) if they are not finite or have other names or sizes.
+The monitor does not assume the plant's configuration: the first message fixes the channel names (and so the
+layout); later messages are decoded with ``amb_ros``'s fast fixed-layout codecs, reordered by name if needed, and
+rejected (never used) if they are not finite or have other names or sizes.  Both inputs return the samples of a
+message as ``(stamps ns (N,), values (N, channels))``: one sample per JointState (/amb/displacement, or
+/amb_plant/state in bags recorded before it carried blocks), ``state_block`` samples per JointTrajectory
+(/amb_plant/state, :mod:`amb_ros.state_block`).
 """
 
 from __future__ import annotations
@@ -11,8 +14,12 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from trajectory_msgs.msg import JointTrajectory
 
 import amb_ros.messages as m
+from amb_ros.state_block import StateBlockDecoder, block_of
+
+STATE_BLOCK_TYPE = "trajectory_msgs/msg/JointTrajectory"
 
 
 class JointStateInput:
@@ -45,12 +52,48 @@ class JointStateInput:
                 raise
         return self._decoder(raw)
 
+    def samples(self, raw: bytes) -> tuple[np.ndarray, np.ndarray]:
+        """The message's one sample as (stamps (1,), values (1, channels))."""
+        t_ns, values = self(raw)
+        return np.array([t_ns], dtype=np.int64), values[None, :]
+
     def scale_groups(self) -> tuple[int, ...] | None:
         """Row-scale groups for the estimator: positions as one group, velocities as another (None: 1 field)."""
         if self.names is None or len(self.fields) == 1:
             return None
         n = len(self.names)
         return tuple(g for g in range(len(self.fields)) for _ in range(n))
+
+
+class StateBlockInput:
+    """Decoder of /amb_plant/state blocks (JointTrajectory) whose coordinate names and block size are learnt."""
+
+    fields = ("position", "velocity")
+
+    def __init__(self):
+        self.names: tuple[str, ...] | None = None
+        self._decoder: StateBlockDecoder | None = None
+
+    def samples(self, raw: bytes) -> tuple[np.ndarray, np.ndarray]:
+        """(stamps ns (N,), values (N, 2n) = [q, dq]) or :class:`amb_ros.messages.Rejected`."""
+        if self._decoder is None:
+            try:
+                msg = deserialize_message(raw, JointTrajectory)
+            except Exception as exc:  # an unparsable buffer is a rejected message
+                raise m.Rejected(f"undecodable JointTrajectory ({exc})") from None
+            names = tuple(msg.joint_names)
+            if not names:
+                raise m.Rejected("state block without joint names")
+            block_of(msg, names)
+            decoder = StateBlockDecoder(names, len(msg.points))
+            out = decoder(raw)  # learn the layout from a usable message only
+            self.names, self._decoder = names, decoder
+            return out
+        return self._decoder(raw)
+
+    def scale_groups(self) -> tuple[int, ...] | None:
+        """Row-scale groups for the estimator: positions as one group, velocities as another."""
+        return None if self.names is None else (0,) * len(self.names) + (1,) * len(self.names)
 
 
 def multipliers_message(mu, count: int) -> Float64MultiArray:

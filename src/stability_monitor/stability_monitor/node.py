@@ -2,8 +2,9 @@
 
 Topics (layouts in docs/monitor.md)
 -----------------------------------
-subscribes /amb_plant/state        sensor_msgs/JointState: name = generalised coordinates, position = q,
-                                   velocity = dq/dt (input:=state, the default)
+subscribes /amb_plant/state        trajectory_msgs/JointTrajectory: blocks of consecutive samples, joint_names =
+                                   generalised coordinates, points[i] = (q, dq/dt) of one sample, stamp = header
+                                   stamp + time_from_start (input:=state, the default; amb_ros.state_block)
 subscribes /amb/displacement       sensor_msgs/JointState: name = AMB channels, position = y (m)
                                    (input:=displacement, sensor-only: what a real rig measures)
 subscribes /base/imu               sensor_msgs/Imu: angular_velocity = Omega (rad/s); only to find the base
@@ -31,6 +32,7 @@ import time
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Bool, Float64MultiArray
+from trajectory_msgs.msg import JointTrajectory
 
 import amb_ros.messages as m
 from amb_dynamics.errors import InputError
@@ -42,7 +44,7 @@ from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos, latched_qos, reliable_qos
 from amb_ros.runtime import run_node
 
-from .messages import JointStateInput, multipliers_message
+from .messages import JointStateInput, StateBlockInput, multipliers_message
 from .pipeline import FORCING_CHOICES, MonitorPipeline, MonitorSettings
 
 MULTIPLIERS, UNSTABLE = m.MULTIPLIERS, m.UNSTABLE
@@ -105,11 +107,12 @@ class MonitorNode(RigNode):
             static_period=p["static_period_s"],
         )
         self.pipeline = MonitorPipeline(self.settings)  # scale groups set once the first sample names the channels
-        self.topic = m.DISPLACEMENT if self.input == "displacement" else m.STATE
-        fields = ("position",) if self.input == "displacement" else ("position", "velocity")
-        self.data_in = JointStateInput(fields)
+        if self.input == "displacement":
+            self.topic, self.data_in, data_type = m.DISPLACEMENT, JointStateInput(("position",)), JointState
+        else:
+            self.topic, self.data_in, data_type = m.STATE, StateBlockInput(), JointTrajectory
         qos = data_qos(self.mode, p["qos_depth"])
-        self.data_sub = self.create_subscription(JointState, self.topic, self.on_data, qos, raw=True)
+        self.data_sub = self.create_subscription(data_type, self.topic, self.on_data, qos, raw=True)
         subs = [self.data_sub]
         self.imu_sub = None
         if self.settings.period == 0:
@@ -136,25 +139,26 @@ class MonitorNode(RigNode):
         self.publish(self.pipeline.on_imu(t_ns * 1e-9, values[4:7]))
 
     def on_data(self, raw: bytes) -> None:
-        got = self.counters.decode(self.topic, self.data_in, raw)
+        got = self.counters.decode(self.topic, self.data_in.samples, raw)
         if got is None:
             return
-        t_ns, values = got
+        stamps, rows = got
         if self.pipeline.scale_groups is None:
             self.pipeline.scale_groups = self.data_in.scale_groups()
-        t0 = time.perf_counter()
-        Ts = self.pipeline.sample_time
-        if Ts is not None and self.last_t_ns is not None and t_ns > self.last_t_ns:
-            self.lost += max(0, round((t_ns - self.last_t_ns) * 1e-9 / Ts) - 1)
-        try:
-            estimates = self.pipeline.on_sample(t_ns * 1e-9, values)
-        except InputError as exc:
-            self.counters.reject(self.topic, str(exc))
-            self.error = str(exc)
-            return
-        self.last_t_ns = t_ns
-        self.publish(estimates)
-        self.cost.add(time.perf_counter() - t0)
+        for t_ns, values in zip(stamps.tolist(), rows, strict=True):
+            t0 = time.perf_counter()
+            Ts = self.pipeline.sample_time
+            if Ts is not None and self.last_t_ns is not None and t_ns > self.last_t_ns:
+                self.lost += max(0, round((t_ns - self.last_t_ns) * 1e-9 / Ts) - 1)
+            try:
+                estimates = self.pipeline.on_sample(t_ns * 1e-9, values)
+            except InputError as exc:
+                self.counters.reject(self.topic, str(exc))
+                self.error = str(exc)
+                return
+            self.last_t_ns = t_ns
+            self.publish(estimates)
+            self.cost.add(time.perf_counter() - t0)
 
     def publish(self, estimates) -> None:
         # the flag follows each estimate, not the last of a batch (the buffered start refits many at once):
