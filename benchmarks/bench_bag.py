@@ -36,7 +36,7 @@ GOAL_MSG_S = 50_000
 ROUNDS = 3  # flood rounds (bimodal DDS delivery: ~10k or ~30-60k msg/s per round, see docs/bags.md)
 PACED_STEPS_S = 4000  # 20,160 msg/s offered: above what the recorder sustains here, so it shows its capacity
 RIG_DURATION = 2.0  # simulated s per lockstep run (10,000 steps at 5 kHz)
-RIG_PAIRS = 3  # alternating runs without / with --bag
+RIG_PAIRS = 5  # alternating runs without / with --bag (and beside the bare reader)
 GOAL_COST = 0.20
 BIN = Path(sys.executable).parent
 
@@ -312,28 +312,48 @@ def rig_steps_per_s(bag: Path | None, reader: bool = False) -> dict:
 
 
 def bench_recording_cost(tmp: Path, pairs: int = RIG_PAIRS) -> dict:
-    """Lockstep steps/s without and with recording, alternating runs in this invocation."""
-    without, with_bag, with_reader = [], [], []
+    """Lockstep steps/s without and with recording (and beside a bare reader), alternating runs in this invocation.
+
+    A run that fails is reported (``failed_runs``) and its pair left out of the medians, not hidden by a retry.
+    """
+    without, with_bag, with_reader, failed = [], [], [], []
+
+    def attempt(label: str, **kwargs) -> dict | None:
+        try:
+            return rig_steps_per_s(**kwargs)
+        except RuntimeError as exc:
+            failed.append(f"{label}: {exc}")
+            return None
+
     for i in range(pairs):
-        without.append(rig_steps_per_s(None))
-        with_bag.append(rig_steps_per_s(tmp / f"rig{i}"))
+        base = attempt(f"pair {i + 1} without --bag", bag=None)
+        rec = attempt(f"pair {i + 1} with --bag", bag=tmp / f"rig{i}")
         shutil.rmtree(tmp / f"rig{i}", ignore_errors=True)
-        with_reader.append(rig_steps_per_s(None, reader=True))
-    pair_costs = [1.0 - b["steps_per_s"] / a["steps_per_s"] for a, b in zip(without, with_bag, strict=True)]
-    reader_costs = [1.0 - b["steps_per_s"] / a["steps_per_s"] for a, b in zip(without, with_reader, strict=True)]
+        bare = attempt(f"pair {i + 1} beside the bare reader", bag=None, reader=True)
+        if base is not None:
+            without.append(base)
+            with_bag.append(rec)
+            with_reader.append(bare)
+    pairs_bag = [(a, b) for a, b in zip(without, with_bag, strict=True) if b is not None]
+    pairs_reader = [(a, b) for a, b in zip(without, with_reader, strict=True) if b is not None]
+    if not pairs_bag or not pairs_reader:
+        raise RuntimeError(f"no complete pair of lockstep runs: {failed}")
+    pair_costs = [1.0 - b["steps_per_s"] / a["steps_per_s"] for a, b in pairs_bag]
+    reader_costs = [1.0 - b["steps_per_s"] / a["steps_per_s"] for a, b in pairs_reader]
     cost = statistics.median(pair_costs)
     return {
-        "steps_per_s_without_bag": statistics.median(r["steps_per_s"] for r in without),
-        "steps_per_s_with_bag": statistics.median(r["steps_per_s"] for r in with_bag),
+        "steps_per_s_without_bag": statistics.median(a["steps_per_s"] for a, _ in pairs_bag),
+        "steps_per_s_with_bag": statistics.median(b["steps_per_s"] for _, b in pairs_bag),
         "cost": cost,
         "pair_costs": pair_costs,
-        "runs_without": [r["steps_per_s"] for r in without],
-        "runs_with": [r["steps_per_s"] for r in with_bag],
-        "runs_with_bare_reader": [r["steps_per_s"] for r in with_reader],
+        "runs_without": [a["steps_per_s"] for a, _ in pairs_bag],
+        "runs_with": [b["steps_per_s"] for _, b in pairs_bag],
+        "runs_with_bare_reader": [b["steps_per_s"] for _, b in pairs_reader],
         "bare_reader_cost": statistics.median(reader_costs),
         "bare_reader_costs": reader_costs,
-        "messages_per_run": with_bag[0]["messages"],
-        "lost": sum(r["lost"] for r in with_bag),
+        "messages_per_run": pairs_bag[0][1]["messages"],
+        "lost": sum(b["lost"] for _, b in pairs_bag),
+        "failed_runs": failed,
         "goal_met": cost < GOAL_COST,
     }
 
@@ -383,6 +403,8 @@ def main() -> dict:
     print(f"  control: beside a bare raw reader of the same topics (takes, writes nothing) "
           f"{100 * cost['bare_reader_cost']:.1f} % ({', '.join(f'{100 * c:.1f} %' for c in cost['bare_reader_costs'])})"
           f": the cost of one more DDS reader")  # fmt: skip
+    for line in cost["failed_runs"]:
+        print(f"  FAILED run (its pair left out): {line}")
     return {"write_path": write, "end_to_end": e2e, "paced": paced, "recording_cost": cost}
 
 

@@ -205,8 +205,9 @@ def rig_steps_per_s(with_monitor: bool) -> tuple[float, str]:
     return summary["steps_per_s"], line
 
 
-def lockstep_side_by_side(repeats: int = 2) -> dict:
-    """Lockstep steps/s without and with the monitor, alternating runs (this machine's load drifts)."""
+def lockstep_side_by_side(repeats: int = 4) -> dict:
+    """Lockstep steps/s without and with the monitor, alternating runs (this machine's load drifts); the cost is
+    the median over the back-to-back pairs of 1 - with / without."""
     without, with_, lines = [], [], []
     for _ in range(repeats):
         without.append(rig_steps_per_s(False)[0])
@@ -218,6 +219,7 @@ def lockstep_side_by_side(repeats: int = 2) -> dict:
         "steps_per_s_without_monitor": float(np.median(without)),
         "steps_per_s_with_monitor": float(np.median(with_)),
         "ratio_with_to_without": float(np.median(with_) / np.median(without)),
+        "pair_costs": [1.0 - b / a for a, b in zip(without, with_, strict=True)],
         "monitor_samples_lost": lost,
         "monitor_summary": lines[-1],
     }
@@ -279,8 +281,10 @@ def main() -> dict:
               f" {100 * c['fraction_of_lockstep_step']:.1f} % of a lockstep step at"
               f" {LOCKSTEP_GOAL_STEPS_S:.0f} steps/s")  # fmt: skip
     ls = res["lockstep"]
+    costs = ", ".join(f"{100 * c:.1f} %" for c in ls["pair_costs"])
     print(f"  lockstep amb-rig: {ls['steps_per_s_without_monitor']:.0f} steps/s without, "
           f"{ls['steps_per_s_with_monitor']:.0f} with the monitor (ratio {ls['ratio_with_to_without']:.2f}); "
+          f"cost {100 * float(np.median(ls['pair_costs'])):.1f} %, median of the pairs ({costs}); "
           f"monitor samples lost {ls['monitor_samples_lost']}")  # fmt: skip
     print(f"  wall time {res['wall_s']:.0f} s")
     return res

@@ -1,6 +1,6 @@
 """Faults: the controller killed mid-run (lockstep and realtime), and nodes given bad parameters.
 
-- lockstep: the plant waits command_timeout_s (2 s) for the missing command, reports it in its final
+- lockstep: the plant waits command_timeout_s (10 s) for the missing command, reports it in its final
   /diagnostics (ERROR) and exits 3; amb-rig exits 1 naming the plant's reason and the killed controller, and no
   process of the run is left;
 - realtime: the plant applies its command policy (hold the last command hold_samples samples, then zero

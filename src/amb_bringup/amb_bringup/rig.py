@@ -30,7 +30,7 @@ from .summary import build_summary, format_summary
 from .supervisor import Supervisor, describe_exit
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
-PEER_DEATH_GRACE_S = 4.0  # > the plant's default command_timeout_s (2 s)
+PEER_DEATH_GRACE_S = 12.0  # > the plant's default command_timeout_s (10 s)
 
 
 def parser() -> argparse.ArgumentParser:

@@ -61,7 +61,8 @@ def specs() -> list[ParamSpec]:
         ParamSpec("quantization", 0.0, "sensor quantization step; 0 = none", "m", 0.0, 1.0),
         ParamSpec("sensor_delay_samples", 0, "sensor delay", "samples", 0, 1000),
         ParamSpec("noise_seed", 0, "seed of the sensor noise", "", 0, 2**31 - 1),
-        ParamSpec("command_timeout_s", 2.0, "lockstep: wall time to wait for a command before failing", "s",
+        ParamSpec("command_timeout_s", 10.0, "lockstep: wall time to wait for a command before failing (longer than"
+                  " the ~3 s a stalled DDS reader can hold the loop up)", "s",
                   0.01, 3600.0),
         ParamSpec("hold_samples", 10, "realtime: samples a stale command is held before zero current", "samples",
                   0, 1000000),

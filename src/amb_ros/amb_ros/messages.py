@@ -9,7 +9,7 @@ Layouts (documented for users in docs/topics.md):
 
 - /amb/displacement  sensor_msgs/JointState   name = channels, position = displacement (m)
 - /amb/current       sensor_msgs/JointState   name = channels, effort = current (A)
-- /amb_plant/state   sensor_msgs/JointState   name = generalised coordinates, position = q, velocity = dq/dt
+- /amb_plant/state   trajectory_msgs/JointTrajectory   blocks of consecutive samples (q, dq/dt): amb_ros.state_block
 - /base/imu          sensor_msgs/Imu          orientation = base->inertial quaternion, angular_velocity = Omega
 - /base/angular_acceleration  geometry_msgs/Vector3Stamped  vector = dOmega/dt (rad/s^2, base axes)
 - /clock             rosgraph_msgs/Clock      simulated time t_k = k Ts (lockstep)
