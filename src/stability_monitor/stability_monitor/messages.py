@@ -22,6 +22,18 @@ from amb_ros.state_block import StateBlockDecoder, block_of
 STATE_BLOCK_TYPE = "trajectory_msgs/msg/JointTrajectory"
 
 
+def _first_message(raw: bytes, msg_type, names_field: str):
+    """The first message of an input, deserialized, and its (non-empty) names; raises Rejected."""
+    try:
+        msg = deserialize_message(raw, msg_type)
+    except Exception as exc:  # an unparsable buffer is a rejected message
+        raise m.Rejected(f"undecodable {msg_type.__name__} ({exc})") from None
+    names = tuple(getattr(msg, names_field))
+    if not names:
+        raise m.Rejected(f"{msg_type.__name__} without {names_field}")
+    return msg, names
+
+
 class JointStateInput:
     """Decoder of JointState samples with the float arrays ``fields`` (position, or position and velocity)."""
 
@@ -33,13 +45,7 @@ class JointStateInput:
     def __call__(self, raw: bytes) -> tuple[int, np.ndarray]:
         """(stamp ns, concatenated fields) or :class:`amb_ros.messages.Rejected`."""
         if self._decoder is None:
-            try:
-                msg = deserialize_message(raw, JointState)
-            except Exception as exc:  # an unparsable buffer is a rejected message
-                raise m.Rejected(f"undecodable JointState ({exc})") from None
-            names = tuple(msg.name)
-            if not names:
-                raise m.Rejected("JointState without channel names")
+            msg, names = _first_message(raw, JointState, "name")
             for f in self.fields:
                 if len(getattr(msg, f)) != len(names):
                     raise m.Rejected(f"{f} has {len(getattr(msg, f))} values for {len(names)} names")
@@ -77,13 +83,7 @@ class StateBlockInput:
     def samples(self, raw: bytes) -> tuple[np.ndarray, np.ndarray]:
         """(stamps ns (N,), values (N, 2n) = [q, dq]) or :class:`amb_ros.messages.Rejected`."""
         if self._decoder is None:
-            try:
-                msg = deserialize_message(raw, JointTrajectory)
-            except Exception as exc:  # an unparsable buffer is a rejected message
-                raise m.Rejected(f"undecodable JointTrajectory ({exc})") from None
-            names = tuple(msg.joint_names)
-            if not names:
-                raise m.Rejected("state block without joint names")
+            msg, names = _first_message(raw, JointTrajectory, "joint_names")
             block_of(msg, names)
             decoder = StateBlockDecoder(names, len(msg.points))
             out = decoder(raw)  # learn the layout from a usable message only
