@@ -79,7 +79,7 @@ def specs() -> list[ParamSpec]:
         ParamSpec("clock_every", 5, "lockstep: publish /clock every N steps (5 at 5 kHz = a 1 kHz clock; base_motion"
                   " runs lead_samples ahead of it)", "steps", 1, 10000),
         ParamSpec("state_block", 25, "samples per /amb_plant/state message (every sample is published; a block "
-                  "costs the loop one DDS delivery per reader instead of one per sample)", "samples", 1, 100000),
+                  "costs the loop one DDS delivery per reader instead of one per sample)", "samples", 1, 200),
     ]  # fmt: skip
 
 
