@@ -26,8 +26,10 @@ def test_realtime_1khz_reports_sane_jitter_and_deadlines(tmp_path, venv_bin):
     plant = s["nodes"]["plant"]["values"]
     assert ctl["mode"] == "realtime" and ctl["rate (Hz)"] == "1000"
     ticks = int(ctl["ticks"])
-    # about one update per millisecond over the run (amb-rig stops the nodes DURATION_S after it sees the plant run)
-    assert 0.8 * DURATION_S * RATE_HZ <= ticks <= 1.6 * DURATION_S * RATE_HZ  # start-up detection adds <= 0.5 s
+    # about one update per millisecond over the run: amb-rig stops the nodes DURATION_S after the plant started
+    # (timed from the plant's own report, which is at most one diagnostics period old: <= 0.5 s more, plus the
+    # stop), even when the plant started seconds before the monitor first reported
+    assert 0.8 * DURATION_S * RATE_HZ <= ticks <= 1.2 * DURATION_S * RATE_HZ
     # best-effort realtime topics: a few messages may drop, and the counts are taken at slightly different stops
     assert abs(int(plant["received /amb/current"]) - int(ctl["published /amb/current"])) <= 0.1 * ticks
     assert abs(int(ctl["received /amb/displacement"]) - int(plant["published /amb/displacement"])) <= 0.1 * ticks

@@ -166,6 +166,20 @@ def default_timeout(args) -> float:
     return 120.0 + args.duration * rate / 100.0
 
 
+def plant_running_for(collector, plant) -> float:
+    """Wall time the plant's loop has run, from its latest diagnostic (0 if unknown).
+
+    The plant starts as soon as its own peers are matched, which can be seconds before every other node (the
+    monitor, the recorder) has reported: a realtime run of --duration is timed from the plant's start, not from
+    the moment amb-rig has heard from everyone (the diagnostic is at most one diagnostics period old).
+    """
+    diag = collector.get(plant.spec.node) if plant is not None else None
+    try:
+        return max(0.0, float(diag["values"].get("wall time (s)", 0.0))) if diag else 0.0
+    except (TypeError, ValueError):
+        return 0.0
+
+
 def wait_run(args, sup: Supervisor, collector, interrupted) -> list[str]:
     """Wait for start-up, then for the end of the run; return error messages (empty: all went well)."""
     plant = sup.find("plant")
@@ -186,7 +200,7 @@ def wait_run(args, sup: Supervisor, collector, interrupted) -> list[str]:
             who = ", ".join(silent) if silent else "the plant (still waiting for its peers)"
             return [f"start-up timed out after {args.start_timeout:g} s: no report from {who}"]
         time.sleep(0.05)
-    run_start = time.monotonic()
+    run_start = time.monotonic() - plant_running_for(collector, plant)
     limit = args.timeout if args.timeout else default_timeout(args)
     grace_end = None
     while interrupted.signum is None:
