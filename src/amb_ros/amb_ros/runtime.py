@@ -12,6 +12,7 @@ import gc
 import os
 import signal
 import sys
+import threading
 
 from amb_dynamics.errors import AmbError
 
@@ -20,6 +21,7 @@ from .env import DdsEnvError, ensure_localhost_dds
 EXIT_OK = 0
 EXIT_USAGE = 2  # bad parameter, config or environment
 EXIT_FAILED = 3  # the run could not go on (peer gone, state diverged)
+TEARDOWN_TIMEOUT_S = 5.0  # < amb-rig's SIGINT wait (8 s)
 
 
 class StopFlag:
@@ -69,20 +71,38 @@ def run_node(name: str, factory, args: list[str] | None = None) -> int:
     except Exception as exc:  # rclpy's RCLInvalidROSArgsError and friends: a usage error, not a bug
         print(f"{name}: cannot initialise ROS ({str(exc).splitlines()[0]})", file=sys.stderr)
         return EXIT_USAGE
-    node = None
+    node, code = None, EXIT_FAILED
     try:
         node = factory(stop)
         # everything allocated so far (imports, model, node) lives for the whole run: moved out of the
         # collector's reach, a full collection no longer walks it (tens of ms: a HIL loop's worst period)
         gc.freeze()
-        return node.run()
+        code = node.run()
     except AmbError as exc:
         print(f"{name}: {exc}", file=sys.stderr)
-        return EXIT_USAGE
+        code = EXIT_USAGE
     except RunFailed as exc:
         print(f"{name}: {exc}", file=sys.stderr)
-        return EXIT_FAILED
+        code = EXIT_FAILED
     finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        teardown(name, node, code, rclpy)
+    return code
+
+
+def teardown(name: str, node, code: int, rclpy) -> None:
+    """Destroy the node and shut DDS down.  A node that has finished (final diagnostics acknowledged) must not
+    hang in Fast DDS's teardown, which happened here once in a few hundred runs (the process stayed until
+    SIGKILL): after TEARDOWN_TIMEOUT_S it exits with its code."""
+    watchdog = threading.Timer(TEARDOWN_TIMEOUT_S, _exit_now, args=(name, code))
+    watchdog.daemon = True
+    watchdog.start()
+    if node is not None:
+        node.destroy_node()
+    rclpy.try_shutdown()
+    watchdog.cancel()
+
+
+def _exit_now(name: str, code: int) -> None:
+    print(f"{name}: DDS shutdown did not finish within {TEARDOWN_TIMEOUT_S:g} s; exiting", file=sys.stderr,
+          flush=True)  # fmt: skip
+    os._exit(code)

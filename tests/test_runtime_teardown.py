@@ -1,0 +1,45 @@
+"""A node that has finished must not hang in DDS teardown: ``amb_ros.runtime.teardown`` exits with the node's code
+after TEARDOWN_TIMEOUT_S when the shutdown does not return (a Fast DDS teardown hang was seen once in a few hundred
+runs; the node then lingered until amb-rig's SIGKILL, which failed the run)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+
+HANGING = """
+import time
+import amb_ros.runtime as rt
+rt.TEARDOWN_TIMEOUT_S = 0.5
+class HangingRclpy:
+    @staticmethod
+    def try_shutdown():
+        time.sleep(60)
+rt.teardown("test_node", None, 3, HangingRclpy)
+"""
+
+RETURNING = """
+import amb_ros.runtime as rt
+rt.TEARDOWN_TIMEOUT_S = 0.5
+class Rclpy:
+    @staticmethod
+    def try_shutdown():
+        pass
+rt.teardown("test_node", None, 3, Rclpy)
+print("returned")
+"""
+
+
+def test_hanging_teardown_exits_with_the_node_code():
+    t0 = time.monotonic()
+    res = subprocess.run([sys.executable, "-c", HANGING], capture_output=True, text=True, timeout=30)
+    assert res.returncode == 3
+    assert "DDS shutdown did not finish within 0.5 s" in res.stderr and "Traceback" not in res.stderr
+    assert time.monotonic() - t0 < 20  # not the 60 s the shutdown would have taken
+
+
+def test_normal_teardown_returns_and_cancels_the_watchdog():
+    res = subprocess.run([sys.executable, "-c", RETURNING + "import time; time.sleep(1.0)"], capture_output=True,
+                         text=True, timeout=30)  # fmt: skip
+    assert res.returncode == 0 and res.stdout.strip() == "returned" and res.stderr == ""
