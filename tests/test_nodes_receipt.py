@@ -118,6 +118,16 @@ def test_state_blocks_round_trip_through_rclpy_and_reject_bad_blocks():
     ]:
         with pytest.raises(m.Rejected, match=reason):
             dec(serialize_message(bad))
+    # the monitor's input learns names and block size from its first usable block only
+    from stability_monitor.messages import StateBlockInput
+
+    learner = StateBlockInput()
+    with pytest.raises(m.Rejected, match="without points"):
+        learner.samples(serialize_message(JointTrajectory(joint_names=list(names))))
+    assert learner.names is None
+    got_t, got_x = learner.samples(blocks[0])
+    assert learner.names == names and learner.scale_groups() == (0, 0, 0, 1, 1, 1)
+    assert np.array_equal(got_t, stamps[:4]) and np.array_equal(got_x, rows[:4])
 
 
 @pytest.mark.ros

@@ -94,6 +94,8 @@ class StateBlockDecoder:
             except Exception as exc:  # a buffer rclpy cannot parse is a rejected message, not a crash
                 raise Rejected(f"undecodable JointTrajectory ({exc})") from None
             stamps, rows = block_of(msg, self.names)
+        if rows.shape[0] == 0:  # a decoder learnt from an empty block decodes empty blocks
+            raise Rejected("state block without points")
         if not np.isfinite(rows).all():
             raise Rejected("non-finite value")
         if stamps[0] < 0:

@@ -17,7 +17,7 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from trajectory_msgs.msg import JointTrajectory
 
 import amb_ros.messages as m
-from amb_ros.state_block import StateBlockDecoder, block_of
+from amb_ros.state_block import StateBlockDecoder
 
 STATE_BLOCK_TYPE = "trajectory_msgs/msg/JointTrajectory"
 
@@ -64,17 +64,18 @@ class JointStateInput:
         return np.array([t_ns], dtype=np.int64), values[None, :]
 
     def scale_groups(self) -> tuple[int, ...] | None:
-        """Row-scale groups for the estimator: positions as one group, velocities as another (None: 1 field)."""
-        if self.names is None or len(self.fields) == 1:
-            return None
-        n = len(self.names)
-        return tuple(g for g in range(len(self.fields)) for _ in range(n))
+        return scale_groups(self.names, self.fields)
+
+
+def scale_groups(names: tuple[str, ...] | None, fields: tuple[str, ...]) -> tuple[int, ...] | None:
+    """Row-scale groups for the estimator: positions as one group, velocities as another (None: 1 field)."""
+    if names is None or len(fields) == 1:
+        return None
+    return tuple(g for g in range(len(fields)) for _ in range(len(names)))
 
 
 class StateBlockInput:
     """Decoder of /amb_plant/state blocks (JointTrajectory) whose coordinate names and block size are learnt."""
-
-    fields = ("position", "velocity")
 
     def __init__(self):
         self.names: tuple[str, ...] | None = None
@@ -84,7 +85,6 @@ class StateBlockInput:
         """(stamps ns (N,), values (N, 2n) = [q, dq]) or :class:`amb_ros.messages.Rejected`."""
         if self._decoder is None:
             msg, names = _first_message(raw, JointTrajectory, "joint_names")
-            block_of(msg, names)
             decoder = StateBlockDecoder(names, len(msg.points))
             out = decoder(raw)  # learn the layout from a usable message only
             self.names, self._decoder = names, decoder
@@ -92,8 +92,7 @@ class StateBlockInput:
         return self._decoder(raw)
 
     def scale_groups(self) -> tuple[int, ...] | None:
-        """Row-scale groups for the estimator: positions as one group, velocities as another."""
-        return None if self.names is None else (0,) * len(self.names) + (1,) * len(self.names)
+        return scale_groups(self.names, ("position", "velocity"))
 
 
 def multipliers_message(mu, count: int) -> Float64MultiArray:

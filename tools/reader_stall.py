@@ -1,0 +1,54 @@
+"""A reader that stops taking holds the lockstep loop up: `.venv/bin/python tools/reader_stall.py 1.5`.
+
+Runs ``amb-rig run --no-monitor`` (4 s simulated) beside benchmarks/bench_bag.py's bare raw reader of every rig
+topic, SIGSTOPs the reader for the given seconds in mid-run, SIGCONTs it, and prints whether the run finished and
+the plant's longest command wait (docs/nodes.md, Faults: 1.5 s stopped gave 1.0-3.5 s, 0.3 s gave 6-13 ms; the
+start-up time varies, so the stop can miss the run).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import bench_bag  # noqa: E402  (the bare reader and the gates that make the plant wait for it)
+
+from amb_ros.env import child_env  # noqa: E402
+
+STOP_AFTER_S = 9.0  # wall time after start: start-up (~5 s) plus about half of the run
+
+
+def main(stop_s: float) -> None:
+    env = child_env()
+    rig_cmd = [str(bench_bag.BIN / "amb-rig"), "run", "--json", "--no-monitor", "--duration", "4",
+               "--set", "controller.current_limit=1e9", *bench_bag.READER_GATES]  # fmt: skip
+    reader = subprocess.Popen([sys.executable, str(ROOT / "benchmarks" / "bench_bag.py"), "--reader"], env=env,
+                              stdout=subprocess.PIPE, text=True)  # fmt: skip
+    rig = subprocess.Popen(rig_cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        time.sleep(STOP_AFTER_S)
+        os.kill(reader.pid, signal.SIGSTOP)
+        time.sleep(stop_s)
+        os.kill(reader.pid, signal.SIGCONT)
+        out, _ = rig.communicate(timeout=600)
+    finally:
+        reader.send_signal(signal.SIGINT)
+        reader.communicate(timeout=60)
+    summary = json.loads(out)
+    plant = summary["nodes"]["plant"]["values"]
+    print(
+        f"reader stopped {stop_s:g} s: run ok {summary['ok']} {summary['errors']}; plant command wait "
+        f"p50 {plant['command wait p50 (us)']} us, max {float(plant['command wait max (us)']) / 1e6:.3f} s"
+    )
+
+
+if __name__ == "__main__":
+    main(float(sys.argv[1]) if len(sys.argv) > 1 else 1.5)
