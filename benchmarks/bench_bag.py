@@ -30,7 +30,11 @@ from pathlib import Path
 CHANNELS = ["amb1_y", "amb1_z", "amb5_y", "amb5_z"]
 DOFS = [f"n{n}_{d}" for n in range(1, 8) for d in ("v", "w", "ty", "tz")]
 WRITE_STEPS = 10_000
-STATE_BLOCK = 25  # the plant's default state_block: one /amb_plant/state message per 25 steps
+STATE_BLOCK = 25  # the plant's default state_block (and base_motion's rates_block): one block per 25 steps
+# steps between messages of each topic of the mix, as the nodes publish them by default (docs/topics.md)
+EVERY = {"/clock": 5, "/base/rates": STATE_BLOCK, "/base/imu": 5, "/base/angular_acceleration": 5,
+         "/amb/displacement": 1, "/amb/current": 1, "/amb_plant/state": STATE_BLOCK}  # fmt: skip
+_STEPS_APART = list(EVERY.values())
 E2E_STEPS = 5_000
 GOAL_MSG_S = 50_000
 ROUNDS = 3  # flood rounds (bimodal DDS delivery: ~10k or ~30-60k msg/s per round, see docs/bags.md)
@@ -54,21 +58,28 @@ def lockstep_mix() -> list[tuple[str, str, bytes]]:
     state = JointTrajectory(
         joint_names=DOFS, points=[JointTrajectoryPoint(positions=[1e-6] * 28, velocities=[1e-4] * 28)] * STATE_BLOCK
     )
+    rates = JointTrajectory(
+        joint_names=["omega_x", "omega_y", "omega_z"],
+        points=[JointTrajectoryPoint(positions=[0.0, 0.0, 7.35], velocities=[0.0, 0.0, -54.0])] * STATE_BLOCK,
+    )
     imu = Imu()
     imu.orientation.w = 1.0
-    return [
+    mix = [
         ("/clock", "rosgraph_msgs/msg/Clock", serialize_message(Clock())),
+        ("/base/rates", "trajectory_msgs/msg/JointTrajectory", serialize_message(rates)),
         ("/base/imu", "sensor_msgs/msg/Imu", serialize_message(imu)),
         ("/base/angular_acceleration", "geometry_msgs/msg/Vector3Stamped", serialize_message(Vector3Stamped())),
         ("/amb/displacement", "sensor_msgs/msg/JointState", serialize_message(disp)),
         ("/amb/current", "sensor_msgs/msg/JointState", serialize_message(current)),
         ("/amb_plant/state", "trajectory_msgs/msg/JointTrajectory", serialize_message(state)),
     ]
+    assert [t for t, _, _ in mix] == list(EVERY)
+    return mix
 
 
 def due(i: int, k: int) -> bool:
-    """Entry ``i`` of the mix is published at step ``k``: every step, the state block every STATE_BLOCK steps."""
-    return i < 5 or (k + 1) % STATE_BLOCK == 0
+    """Entry ``i`` of the mix (the order of ``EVERY``) is published at step ``k``."""
+    return (k + 1) % _STEPS_APART[i] == 0
 
 
 def published_in(steps: int) -> list[int]:
@@ -230,14 +241,14 @@ def bench_end_to_end(tmp: Path, steps: int = E2E_STEPS, rate: float = 0.0) -> di
     }
 
 
-RIG_TOPICS = ("/clock", "/amb/displacement", "/amb/current", "/amb_plant/state", "/base/imu",
-              "/base/angular_acceleration")  # fmt: skip
+RIG_TOPICS = tuple(EVERY)
 GATES = (
     "plant:min_subscribers=2",
     "plant:min_state_subscribers=1",
-    "base_motion:min_imu_subscribers=2",
-    "base_motion:min_acceleration_subscribers=2",
-)  # every step reaches the bare reader too
+    "base_motion:min_rates_subscribers=2",
+    "base_motion:min_imu_subscribers=1",
+    "base_motion:min_acceleration_subscribers=1",
+)  # every sample reaches the bare reader too
 READER_GATES = [a for g in GATES for a in ("--param", g)]
 
 
@@ -256,6 +267,7 @@ def bare_reader() -> None:
 
     types = {
         "/clock": Clock,
+        "/base/rates": JointTrajectory,
         "/base/imu": Imu,
         "/base/angular_acceleration": Vector3Stamped,
         "/amb_plant/state": JointTrajectory,

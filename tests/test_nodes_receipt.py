@@ -3,7 +3,8 @@
 Unit level: ``TemplateCodec`` encodes exactly the bytes rclpy serializes (up to CDR padding) and decodes
 rclpy-serialized buffers; the slow path reorders channel names and rejects NaN, unknown names and wrong sizes.
 Over DDS: a lockstep controller fed one good sample, then a NaN, wrong names, a wrong size and an off-grid stamp,
-answers only the good one, with the current the core's DiscretePID computes, and counts four rejections.
+answers only the good one, with the current the core's DiscretePID computes, and counts four rejections; a
+lockstep plant fed bad /base/rates blocks rejects them and steps with the good block's rates exactly.
 """
 
 from __future__ import annotations
@@ -178,3 +179,95 @@ def test_controller_rejects_bad_samples_over_dds(tmp_path, venv_bin):
     values = {kv.key: kv.value for kv in final[-1].values}
     assert values["rejected total"] == "4" and values["samples answered"] == "1"
     assert "rejected" in final[-1].message
+
+
+def rates_block(k0: int, rows: np.ndarray, names=m.BASE_RATE_NAMES, grid_ns: int = 200_000, offset_ns: int = 0):
+    """A /base/rates block of samples k0, k0+1, ... (rows = [Omega, dOmega])."""
+    from builtin_interfaces.msg import Duration
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+    msg = JointTrajectory(joint_names=list(names))
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k0 * grid_ns + offset_ns, 10**9)
+    msg.points = [
+        JointTrajectoryPoint(
+            positions=r[:3].tolist(), velocities=r[3:].tolist(), time_from_start=Duration(nanosec=i * grid_ns)
+        )
+        for i, r in enumerate(rows)
+    ]
+    return msg
+
+
+@pytest.mark.ros
+def test_plant_takes_base_rate_blocks_and_rejects_bad_ones_over_dds(tmp_path, venv_bin):
+    """A lockstep plant fed /base/rates blocks with a NaN, an off-grid stamp and foreign names, then a good block,
+    steps with the good block's rates exactly (its state equals the core's PlantStepper with those rates) and
+    counts three rejections."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.executors import SingleThreadedExecutor
+    from rosgraph_msgs.msg import Clock
+    from trajectory_msgs.msg import JointTrajectory
+
+    from amb_dynamics.sampled import PlantStepper
+    from amb_dynamics.structure import build_structure
+    from amb_ros.qos import lockstep_qos
+    from amb_ros.state_block import block_of
+
+    steps = 10
+    t = np.arange(steps + 2) * 2e-4
+    good = np.zeros((steps + 2, 6))
+    good[:, 2], good[:, 5] = 7.35 * np.cos(24.5 * t), -180.0 * np.sin(24.5 * t)  # pitch: Omega_z, dOmega_z
+    bad_nan = good[:3].copy()
+    bad_nan[1, 4] = np.nan
+    rec = DdsRecorder({"/amb_plant/state": JointTrajectory, "/diagnostics": DiagnosticArray})
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node("test_base_feeder", context=ctx)
+    qos = lockstep_qos()
+    rates_pub = node.create_publisher(JointTrajectory, m.BASE_RATES, qos)
+    cmd_pub = node.create_publisher(JointState, m.CURRENT, qos)
+
+    def answer(y: JointState) -> None:  # zero current for every sample, stamped with the sample's stamp
+        cmd = JointState(name=list(CHANNELS), effort=[0.0] * 4)
+        cmd.header.stamp = y.header.stamp
+        cmd_pub.publish(cmd)
+
+    node.create_subscription(JointState, m.DISPLACEMENT, answer, qos)
+    node.create_subscription(Clock, m.CLOCK, lambda _c: None, qos)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    params = [f"duration_s:={steps * 2e-4!r}", "initial_displacement:=0.0001", "min_state_subscribers:=1"]
+    try:
+        with spawn([str(venv_bin / "amb-plant"), "--ros-args", *[a for p in params for a in ("-p", p)]],
+                   tmp_path / "plant.log") as plant:  # fmt: skip
+            end = time.monotonic() + 60
+            while rates_pub.get_subscription_count() < 1 and time.monotonic() < end:
+                executor.spin_once(timeout_sec=0.05)
+            for msg in [rates_block(0, bad_nan), rates_block(0, good[:3], offset_ns=100),
+                        rates_block(0, good[:3], names=("a", "b", "c")), rates_block(0, good)]:  # fmt: skip
+                rates_pub.publish(msg)
+            end = time.monotonic() + 60
+            while plant.popen.poll() is None and time.monotonic() < end:
+                executor.spin_once(timeout_sec=0.05)
+            assert plant.wait(30) == 0, plant.text()
+        time.sleep(0.5)
+    finally:
+        node.destroy_node()
+        ctx.try_shutdown()
+        rec.close()
+    cfg = load_config()
+    model = build_structure(cfg)
+    stepper = PlantStepper(model, cfg, 2e-4)
+    stamps, rows = zip(*(block_of(b, model.dof_names) for b in rec.messages["/amb_plant/state"]), strict=True)
+    stamps, X = np.concatenate(stamps), np.concatenate(rows)
+    assert np.array_equal(stamps, np.arange(steps + 1) * 200_000)
+    x = X[0]
+    assert np.abs(x).max() > 0  # the disk starts displaced
+    for k in range(steps):
+        E, _G, g = stepper.matrices(good[k, :3], good[k, 3:])
+        x = E @ x + g
+        np.testing.assert_allclose(X[k + 1], x, rtol=0, atol=1e-12 * np.abs(X).max())
+    statuses = [s for a in rec.messages["/diagnostics"] for s in a.status if s.name == "amb_plant"]
+    values = {kv.key: kv.value for kv in statuses[-1].values}
+    assert values["final"] == "true" and values["steps"] == str(steps)
+    assert values[f"rejected {m.BASE_RATES}"] == "3" and values["rejected total"] == "3"

@@ -99,6 +99,7 @@ def test_killed_controller_in_realtime_applies_the_command_policy(tmp_path, venv
         ("amb-controller", ["rate_hz:=-1000"], "parameter 'rate_hz' = -1000 is out of range"),
         ("amb-base-motion", ["kind:=wobble"], "parameter 'kind' = 'wobble' is not one of none, roll, pitch, yaw"),
         ("amb-controller", ["rat_hz:=5000.0"], "unknown parameter 'rat_hz'"),
+        ("amb-base-motion", ["lead_samples:=10"], "lead_samples 10 must be at least rates_block 25"),
         ("amb-plant", ["set:=[controller.rate_hz=abc]"], "'controller.rate_hz' must be a number (got 'abc')"),
     ],
 )

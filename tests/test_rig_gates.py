@@ -15,18 +15,20 @@ def gates(*argv: str) -> dict:
 
 
 @pytest.mark.parametrize(
-    ("argv", "imu", "state", "disp"),
+    ("argv", "rates", "imu", "acc", "state", "disp"),
     [
-        ((), 2, 1, 1),  # plant + monitor read /base/imu; the monitor reads the state
-        (("--no-monitor",), 1, 0, 1),
-        (("--bag", "b"), 3, 2, 2),  # + the recorder reads everything
-        (("--param", "monitor:period_s=0.14"), 1, 1, 1),  # a given period: the monitor reads no /base/imu
-        (("--param", "monitor:input=displacement"), 2, 0, 2),  # sensor-only monitor reads the displacements
-        (("--no-plant",), 1, 0, 2),  # no plant: the monitor reads imu and displacements
+        ((), 1, 1, 0, 1, 1),  # the plant reads /base/rates, the monitor /base/imu and the state
+        (("--no-monitor",), 1, 0, 0, 0, 1),
+        (("--bag", "b"), 2, 2, 1, 2, 2),  # + the recorder reads everything
+        (("--param", "monitor:period_s=0.14"), 1, 0, 0, 1, 1),  # a given period: the monitor reads no /base/imu
+        (("--param", "monitor:input=displacement"), 1, 1, 0, 0, 2),  # sensor-only monitor reads the displacements
+        (("--no-plant",), 0, 1, 0, 0, 2),  # no plant: the monitor reads imu and displacements
     ],
 )
-def test_reader_gates_count_the_readers_that_come(argv, imu, state, disp):
+def test_reader_gates_count_the_readers_that_come(argv, rates, imu, acc, state, disp):
     g = gates(*argv)
+    assert g["base_motion.min_rates_subscribers"] == rates
     assert g["base_motion.min_imu_subscribers"] == imu
+    assert g["base_motion.min_acceleration_subscribers"] == acc
     assert g["plant.min_state_subscribers"] == state
     assert g["plant.min_subscribers"] == disp

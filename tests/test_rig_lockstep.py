@@ -152,6 +152,13 @@ def test_lockstep_equals_offline_and_two_runs_are_identical(tmp_path, venv_bin):
     plant = s1["nodes"]["plant"]["values"]
     assert int(plant["published /clock"]) == len([k for k in range(steps + 1) if k % 5 == 0 or k == steps])
     assert int(s1["nodes"]["base_motion"]["values"]["received /clock"]) == int(plant["published /clock"])
+    # base_motion: every sample in /base/rates blocks of rates_block = 25 (the plant's input; the offline equality
+    # above shows each step got its own), /base/imu and /base/angular_acceleration every imu_every = 5 samples
+    base = s1["nodes"]["base_motion"]["values"]
+    n_base = int(base["samples published"])
+    assert n_base > steps  # ahead of the plant (lead_samples)
+    assert int(base["published /base/rates"]) == -(-n_base // 25)
+    assert int(base["published /base/imu"]) == int(base["published /base/angular_acceleration"]) == -(-n_base // 5)
     # the state in blocks of state_block = 25 samples (the last one shorter), every sample exactly once
     assert sorted(state1) == [k * TS_NS for k in range(steps + 1)]
     assert int(plant["published /amb_plant/state"]) == len(rec_blocks(steps + 1, 25))

@@ -87,8 +87,9 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
     gates = {
         ("plant", "min_subscribers"): 1 + bag + sensor_only,  # the controller, the recorder, the monitor
         ("plant", "min_state_subscribers"): bag + (monitor and not sensor_only),
-        ("base_motion", "min_imu_subscribers"): (0 if args.no_plant else 1) + bag + monitor_imu,
-        ("base_motion", "min_acceleration_subscribers"): (0 if args.no_plant else 1) + bag,
+        ("base_motion", "min_rates_subscribers"): (0 if args.no_plant else 1) + bag,  # lockstep: the plant's input
+        ("base_motion", "min_imu_subscribers"): bag + monitor_imu,
+        ("base_motion", "min_acceleration_subscribers"): bag,
     }
     for (node, key), value in gates.items():
         per[node].setdefault(key, int(value))  # an explicit --param wins

@@ -38,9 +38,9 @@ def run_lockstep(node) -> None:
         mats = None
         while True:
             node.drain()
-            if mats is None and k in node.imu and k in node.acc:
-                imu, acc = node.imu.pop(k), node.acc.pop(k)
-                mats = stepper.matrices(imu[4:7], acc)  # overlaps with the controller's computation
+            if mats is None and k in node.rates:
+                rates = node.rates.pop(k)
+                mats = stepper.matrices(rates[:3], rates[3:])  # overlaps with the controller's computation
             if mats is not None and k in node.commands:
                 break
             if node.stop.is_set:
@@ -64,8 +64,8 @@ def run_lockstep(node) -> None:
 def lockstep_timeout_message(node, k: int, have_base: bool, timeout: float) -> str:
     what = []
     if not have_base:
-        what.append(f"base sample ({m.IMU}, {m.ANGULAR_ACCELERATION}; base_motion's lead_samples must be at least "
-                    f"clock_every = {node.p['clock_every']})")  # fmt: skip
+        what.append(f"base sample ({m.BASE_RATES}; base_motion's lead_samples must be at least its rates_block + "
+                    f"clock_every - 2 = rates_block + {node.p['clock_every'] - 2})")  # fmt: skip
     if k not in node.commands:
         what.append(f"command on {m.CURRENT} (controller gone?)")
     return f"no {' or '.join(what)} for step {k} (t = {k * node.Ts:.6g} s) within {timeout:g} s"

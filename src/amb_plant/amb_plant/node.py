@@ -12,7 +12,8 @@ publishes  /amb_plant/state             trajectory_msgs/JointTrajectory: every s
 publishes  /diagnostics                 steps, rates, peak displacement vs air gap, saturation, command
                                         timeouts, counts published/received/rejected
 subscribes /amb/current                 sensor_msgs/JointState: effort = coil current (A), stamp = the sample
-subscribes /base/imu, /base/angular_acceleration   base rates Omega, dOmega held over each step
+subscribes /base/rates (lockstep)       trajectory_msgs/JointTrajectory blocks: Omega, dOmega of every step
+subscribes /base/imu, /base/angular_acceleration (realtime)   the latest base rates Omega, dOmega
 
 Lockstep: at step k publish y_k, /clock and (every state_block steps) the state (stamp t_k), wait for the base
 sample k and the command stamped t_k (waiting on the command alone once the base sample is in), then
@@ -44,12 +45,13 @@ from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos
 from amb_ros.runtime import RunFailed, run_node
-from amb_ros.state_block import StateBlockWriter
+from amb_ros.state_block import StateBlockDecoder, StateBlockWriter
 
 from .loops import run_lockstep, run_realtime
 from .sensor import CommandPolicy, SensorModel
 
 SAMPLE_MEMORY = 4096  # realtime: published samples whose stamp a command may still answer
+RATES_BLOCK = 25  # base_motion's default rates_block: the decoder's fast path (other block sizes are decoded too)
 
 
 def specs() -> list[ParamSpec]:
@@ -116,15 +118,21 @@ class PlantNode(RigNode):
         self.state_block = StateBlockWriter(self.model.dof_names, p["state_block"])
         self.clock_codec = m.clock_codec()
         self.cmd_decoder = m.joint_state_decoder(self.channels, ("effort",))
-        self.imu_decoder, self.acc_decoder = m.imu_decoder(), m.vector3_decoder()
         self.cmd_sub = self.create_subscription(JointState, m.CURRENT, self.on_command, qos, raw=True)
-        self.imu_sub = self.create_subscription(Imu, m.IMU, self.on_imu, qos, raw=True)
-        self.acc_sub = self.create_subscription(Vector3Stamped, m.ANGULAR_ACCELERATION, self.on_acc, qos, raw=True)
-        self.waiter = Waiter(self, [self.cmd_sub, self.imu_sub, self.acc_sub])
+        self.handlers = [(self.cmd_sub, self.on_command)]
+        if self.mode == "lockstep":  # every base sample, in blocks
+            self.rates_decoder = StateBlockDecoder(m.BASE_RATE_NAMES, RATES_BLOCK)
+            rates_sub = self.create_subscription(JointTrajectory, m.BASE_RATES, self.on_rates, qos, raw=True)
+            self.handlers.append((rates_sub, self.on_rates))
+        else:  # the latest sample of the base's sensors
+            self.imu_decoder, self.acc_decoder = m.imu_decoder(), m.vector3_decoder()
+            imu_sub = self.create_subscription(Imu, m.IMU, self.on_imu, qos, raw=True)
+            acc_sub = self.create_subscription(Vector3Stamped, m.ANGULAR_ACCELERATION, self.on_acc, qos, raw=True)
+            self.handlers += [(imu_sub, self.on_imu), (acc_sub, self.on_acc)]
+        self.waiter = Waiter(self, [sub for sub, _ in self.handlers])
         # received data: lockstep keeps samples by step index, realtime only the latest
         self.commands: dict[int, np.ndarray] = {}
-        self.imu: dict[int, np.ndarray] = {}
-        self.acc: dict[int, np.ndarray] = {}
+        self.rates: dict[int, np.ndarray] = {}  # lockstep: step -> [Omega, dOmega]
         self.latest_rates = (np.zeros(3), np.zeros(3))
         self.k_now = 0  # lockstep: the step being computed; realtime: the current tick
         self.sample_index: dict[int, int] = {}  # realtime: stamp of a published sample -> its tick
@@ -172,26 +180,38 @@ class PlantNode(RigNode):
         else:
             self.counters.reject(m.CURRENT, f"command for step {k} while at step {self.k_now}")
 
-    def _on_base(self, topic: str, decoder, raw: bytes, store: dict) -> None:
-        k, values = self._decode(topic, decoder, raw)
-        if k is None:
+    def on_rates(self, raw: bytes) -> None:
+        """Lockstep: a block of base samples [Omega, dOmega], kept by step until the plant gets there."""
+        got = self.counters.decode(m.BASE_RATES, self.rates_decoder, raw)
+        if got is None:
             return
-        if self.mode == "realtime":
-            om, dom = self.latest_rates
-            self.latest_rates = (values[4:7].copy(), dom) if topic == m.IMU else (om, values.copy())
-        elif k >= self.k_now:
-            store[k] = values.copy()
-        else:
-            self.counters.reject(topic, f"sample for step {k} arrived after step {self.k_now} began")
+        stamps, rows = got
+        off_grid = stamps % self.Ts_ns
+        if off_grid.any():
+            bad = int(stamps[np.argmax(off_grid != 0)])
+            self.counters.reject(m.BASE_RATES, f"stamp {bad} ns is not on the {self.Ts_ns} ns sample grid")
+            return
+        first = int(stamps[0]) // self.Ts_ns
+        if first < self.k_now:
+            self.counters.reject(m.BASE_RATES, f"block from step {first} arrived after step {self.k_now} began")
+            return
+        for k, row in zip((stamps // self.Ts_ns).tolist(), rows, strict=True):
+            self.rates[k] = row
 
     def on_imu(self, raw: bytes) -> None:
-        self._on_base(m.IMU, self.imu_decoder, raw, self.imu)
+        """Realtime: the latest Omega."""
+        got = self.counters.decode(m.IMU, self.imu_decoder, raw)
+        if got is not None:
+            self.latest_rates = (got[1][4:7].copy(), self.latest_rates[1])
 
     def on_acc(self, raw: bytes) -> None:
-        self._on_base(m.ANGULAR_ACCELERATION, self.acc_decoder, raw, self.acc)
+        """Realtime: the latest dOmega/dt."""
+        got = self.counters.decode(m.ANGULAR_ACCELERATION, self.acc_decoder, raw)
+        if got is not None:
+            self.latest_rates = (self.latest_rates[0], got[1].copy())
 
     def drain(self) -> None:
-        for sub, handler in ((self.cmd_sub, self.on_command), (self.imu_sub, self.on_imu), (self.acc_sub, self.on_acc)):
+        for sub, handler in self.handlers:
             while (raw := Waiter.take(sub)) is not None:
                 handler(raw)
 
@@ -254,7 +274,7 @@ class PlantNode(RigNode):
         missing = []
         if self.disp_pub.get_subscription_count() < self.p["min_subscribers"]:
             missing.append(f"{self.p['min_subscribers']} reader(s) of {m.DISPLACEMENT}")
-        for sub in (self.cmd_sub, self.imu_sub, self.acc_sub):
+        for sub, _ in self.handlers:
             if self.count_publishers(sub.topic_name) < 1:
                 missing.append(f"publisher of {sub.topic_name}")
         if self.state_pub.get_subscription_count() < self.p["min_state_subscribers"]:

@@ -10,6 +10,8 @@ Layouts (documented for users in docs/topics.md):
 - /amb/displacement  sensor_msgs/JointState   name = channels, position = displacement (m)
 - /amb/current       sensor_msgs/JointState   name = channels, effort = current (A)
 - /amb_plant/state   trajectory_msgs/JointTrajectory   blocks of consecutive samples (q, dq/dt): amb_ros.state_block
+- /base/rates        trajectory_msgs/JointTrajectory   lockstep: every base sample in blocks, joint_names =
+                     BASE_RATE_NAMES, positions = Omega, velocities = dOmega/dt (the plant's input; amb_ros.state_block)
 - /base/imu          sensor_msgs/Imu          orientation = base->inertial quaternion, angular_velocity = Omega
 - /base/angular_acceleration  geometry_msgs/Vector3Stamped  vector = dOmega/dt (rad/s^2, base axes)
 - /clock             rosgraph_msgs/Clock      simulated time t_k = k Ts (lockstep)
@@ -29,6 +31,8 @@ from .codec import TemplateCodec, stamp_ns
 CLOCK = "/clock"
 IMU = "/base/imu"
 ANGULAR_ACCELERATION = "/base/angular_acceleration"
+BASE_RATES = "/base/rates"
+BASE_RATE_NAMES = ("omega_x", "omega_y", "omega_z")  # /base/rates joints: Omega in base axes, velocities = dOmega/dt
 DISPLACEMENT = "/amb/displacement"
 CURRENT = "/amb/current"
 STATE = "/amb_plant/state"

@@ -1,4 +1,4 @@
-"""/amb_plant/state: the plant's full state, every sample, a block of consecutive samples per message.
+"""Blocks of consecutive samples per message: /amb_plant/state (the plant's state) and /base/rates (lockstep).
 
 Layout (trajectory_msgs/JointTrajectory, documented for users in docs/topics.md):
 
@@ -11,6 +11,9 @@ One message per ``state_block`` samples instead of one per sample: every extra r
 monitor, the recorder) costs the lockstep loop a DDS delivery and a wake-up per step, which on a small machine is
 most of what they cost (measured in ``make bench``); a block costs that once per ``state_block`` steps.  The last
 block of a run (or of a failed run) holds the samples that are left, so that no sample is ever missing.
+
+/base/rates has the same layout with ``joint_names`` = ``omega_x, omega_y, omega_z``: positions = the base's
+angular velocity Omega, velocities = its derivative dOmega/dt (base axes), one point per lockstep sample.
 """
 
 from __future__ import annotations
@@ -51,6 +54,10 @@ class StateBlockWriter:
         self.codec = state_block_codec(self.names, count)
         self.rows = np.zeros((count, 2 * len(self.names)))
         self.stamps = np.zeros(count, dtype=np.int64)
+        self.filled = 0
+
+    def reset(self) -> None:
+        """Drop the samples collected so far (the sequence restarts)."""
         self.filled = 0
 
     def add(self, t_ns: int, x: np.ndarray) -> bytes | None:
@@ -95,7 +102,7 @@ class StateBlockDecoder:
                 raise Rejected(f"undecodable JointTrajectory ({exc})") from None
             stamps, rows = block_of(msg, self.names)
         if rows.shape[0] == 0:  # a decoder learnt from an empty block decodes empty blocks
-            raise Rejected("state block without points")
+            raise Rejected("block without points")
         if not np.isfinite(rows).all():
             raise Rejected("non-finite value")
         if stamps[0] < 0:
@@ -112,7 +119,7 @@ def block_of(msg: JointTrajectory, names: tuple[str, ...]) -> tuple[np.ndarray, 
         raise Rejected(f"joint names {got[:4]}{'...' if len(got) > 4 else ''} (expected {len(names)}: "
                        f"{list(names[:4])}...)")  # fmt: skip
     if not msg.points:
-        raise Rejected("state block without points")
+        raise Rejected("block without points")
     order = [got.index(nm) for nm in names]
     n = len(names)
     rows = np.empty((len(msg.points), 2 * n))

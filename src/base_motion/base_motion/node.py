@@ -2,16 +2,23 @@
 
 Topics (layouts in docs/topics.md)
 ----------------------------------
+publishes  /base/rates (lockstep)       trajectory_msgs/JointTrajectory: every sample, rates_block (25) per message:
+                                        joint_names = omega_x, omega_y, omega_z, points[i].positions = Omega,
+                                        velocities = dOmega/dt (base axes) - the plant's input (amb_ros.state_block)
 publishes  /base/imu                    sensor_msgs/Imu: orientation = base->inertial quaternion (x, y, z, w),
-                                        angular_velocity = Omega in base axes (rad/s); stamp = t_k
-publishes  /base/angular_acceleration   geometry_msgs/Vector3Stamped: dOmega/dt in base axes (rad/s^2)
+                                        angular_velocity = Omega in base axes (rad/s); stamp = t_k; lockstep: every
+                                        imu_every samples (default 5: 1 kHz at 5 kHz), realtime: every tick
+publishes  /base/angular_acceleration   geometry_msgs/Vector3Stamped: dOmega/dt in base axes (rad/s^2), as /base/imu
 publishes  /diagnostics                 samples published, clock messages received/rejected, lead
 subscribes /clock (lockstep)            rosgraph_msgs/Clock from the plant
 
 Lockstep: the plant publishes /clock = t_k at step k; this node answers with the samples up to k + lead_samples
 (it does not depend on the plant, so it runs ahead by a bounded credit window and is off the plant's critical
-path; lead_samples = 0 is strict request/response).  A /clock that goes backwards restarts the sequence there.
-Realtime: samples on a wall-clock ticker at rate_hz, t measured from the node's start, stamped with wall time.
+path), in whole blocks of /base/rates.  A /clock that goes backwards restarts the sequence there.
+Every base sample reaches the plant in blocks rather than as an Imu + Vector3Stamped pair per step: each reader
+of a per-step topic (the plant, a recorder) costs the lockstep loop a DDS delivery per message (``make bench``).
+Realtime: samples on a wall-clock ticker at rate_hz, t measured from the node's start, stamped with wall time;
+the plant takes /base/imu and /base/angular_acceleration (a rig uses the latest sample).
 
 Profiles: none, roll, pitch, yaw (beta = A sin(w t)), combined (harmonics of the config's base_motion),
 recorded (CSV file, see amb_dynamics.recorded).
@@ -26,6 +33,7 @@ import numpy as np
 from geometry_msgs.msg import Vector3Stamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
+from trajectory_msgs.msg import JointTrajectory
 
 import amb_ros.messages as m
 from amb_dynamics.errors import InputError
@@ -37,6 +45,7 @@ from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos
 from amb_ros.runtime import run_node
+from amb_ros.state_block import StateBlockWriter
 
 from .samples import SampleSource
 
@@ -51,11 +60,19 @@ def specs() -> list[ParamSpec]:
         ParamSpec("frequency", None, "angular frequency w", "rad/s", 0.0, 1.0e4, config_key="base_motion.frequency"),
         ParamSpec("recorded_file", "", "CSV with columns t, roll, pitch, yaw (kind recorded)"),
         ParamSpec("recorded_smoothing", 0.0, "smoothing-spline lambda for recorded; 0 = automatic (GCV)", lo=0.0),
-        ParamSpec("min_imu_subscribers", 1, "lockstep: readers of /base/imu required before the first sample (amb-rig:"
-                  " plant, recorder, monitor), so that every reader gets every sample", "", 0, 100),
-        ParamSpec("min_acceleration_subscribers", 1, "lockstep: readers of /base/angular_acceleration required "
-                  "before the first sample", "", 0, 100),
-        ParamSpec("lead_samples", 200, "lockstep: samples published ahead of the plant's /clock", "samples", 0, 10000),
+        ParamSpec("rates_block", 25, "lockstep: samples per /base/rates message (every sample is published)",
+                  "samples", 1, 200),
+        ParamSpec("imu_every", 5, "lockstep: publish /base/imu and /base/angular_acceleration every N samples (the "
+                  "plant takes /base/rates; 5 at 5 kHz = 1 kHz)", "samples", 1, 10000),
+        ParamSpec("min_rates_subscribers", 1, "lockstep: readers of /base/rates required before the first sample "
+                  "(amb-rig: plant, recorder), so that every reader gets every sample", "", 0, 100),
+        ParamSpec("min_imu_subscribers", 0, "lockstep: readers of /base/imu required before the first sample "
+                  "(amb-rig: recorder, monitor)", "", 0, 100),
+        ParamSpec("min_acceleration_subscribers", 0, "lockstep: readers of /base/angular_acceleration required "
+                  "before the first sample (amb-rig: recorder)", "", 0, 100),
+        ParamSpec("lead_samples", 200, "lockstep: samples published ahead of the plant's /clock (at least rates_block"
+                  " + the plant's clock_every - 2, so that the block of every step is out in time)", "samples", 0,
+                  10000),
         ParamSpec("batch_wait_s", 0.002, "lockstep: pause before answering /clock, so that one wake-up answers many "
                   "steps (off the plant's critical path while lead_samples covers it)", "s", 0.0, 1.0),
     ]  # fmt: skip
@@ -75,12 +92,19 @@ class BaseMotionNode(RigNode):
             self.motion = BaseMotion.from_config(self.cfg.base_motion)
         if p["lead_samples"] * 2 >= p["qos_depth"]:
             raise InputError(f"lead_samples {p['lead_samples']} must be below half of qos_depth {p['qos_depth']}")
+        if self.mode == "lockstep" and p["lead_samples"] < p["rates_block"]:
+            raise InputError(f"lead_samples {p['lead_samples']} must be at least rates_block {p['rates_block']} (the "
+                             "plant waits for the block that holds its step)")  # fmt: skip
         self.kind = kind
         self.source = SampleSource(self.motion, self.Ts)
         qos = data_qos(self.mode, p["qos_depth"])
         self.imu_pub = self.create_publisher(Imu, m.IMU, qos)
         self.acc_pub = self.create_publisher(Vector3Stamped, m.ANGULAR_ACCELERATION, qos)
         self.imu_codec, self.acc_codec = m.imu_codec(), m.vector3_codec()
+        self.rates_pub = self.rates = None
+        if self.mode == "lockstep":
+            self.rates_pub = self.create_publisher(JointTrajectory, m.BASE_RATES, qos)
+            self.rates = StateBlockWriter(m.BASE_RATE_NAMES, p["rates_block"])
         self.clock_decoder = m.clock_decoder()
         subs = []
         if self.mode == "lockstep":
@@ -96,9 +120,19 @@ class BaseMotionNode(RigNode):
     # -- publishing --------------------------------------------------------------------------------
     def publish_sample(self, k: int, stamp_ns: int) -> None:
         q, om, dom = self.source.sample(k)
-        self.imu_pub.publish(self.imu_codec.encode(stamp_ns, np.concatenate([q, om])))
-        self.acc_pub.publish(self.acc_codec.encode(stamp_ns, dom))
+        if self.rates is not None:
+            self.publish_rates(self.rates.add(stamp_ns, np.concatenate([om, dom])))
+        if self.rates is None or k % self.p["imu_every"] == 0:
+            self.imu_pub.publish(self.imu_codec.encode(stamp_ns, np.concatenate([q, om])))
+            self.acc_pub.publish(self.acc_codec.encode(stamp_ns, dom))
+            self.counters.published[m.IMU] += 1
+            self.counters.published[m.ANGULAR_ACCELERATION] += 1
         self.published += 1
+
+    def publish_rates(self, block: bytes | None) -> None:
+        if block is not None:
+            self.rates_pub.publish(block)
+            self.counters.published[m.BASE_RATES] += 1
 
     def on_clock(self, raw: bytes) -> None:
         got = self.counters.decode(m.CLOCK, self.clock_decoder, raw)
@@ -112,12 +146,14 @@ class BaseMotionNode(RigNode):
         if k < self.clock_k:  # the plant restarted: follow it
             self.restarts += 1
             self.next_k = k
+            self.rates.reset()  # the next block starts there
         self.clock_k = k
 
     def readers_ready(self) -> bool:
         """Before sample 0: every expected reader is matched (a late recorder would lose the first samples)."""
         return self.next_k > 0 or (
-            self.imu_pub.get_subscription_count() >= self.p["min_imu_subscribers"]
+            self.rates_pub.get_subscription_count() >= self.p["min_rates_subscribers"]
+            and self.imu_pub.get_subscription_count() >= self.p["min_imu_subscribers"]
             and self.acc_pub.get_subscription_count() >= self.p["min_acceleration_subscribers"]
         )
 
@@ -150,6 +186,8 @@ class BaseMotionNode(RigNode):
                 self.publish_sample(k, self.get_clock().now().nanoseconds)
                 self.housekeeping()
             self.skipped = ticker.skipped
+        if self.rates is not None:
+            self.publish_rates(self.rates.flush())  # the samples of the last, shorter block
         self.waiter.close()
         level, message = self.status()
         self.diag.publish_final(level, message, self.values())
@@ -184,7 +222,6 @@ class BaseMotionNode(RigNode):
                 "wall time (s)": f"{time.monotonic() - self.wall_start:.3f}" if self.wall_start else "0",
             }
         )
-        self.counters.published[m.IMU] = self.counters.published[m.ANGULAR_ACCELERATION] = self.published
         return out
 
 

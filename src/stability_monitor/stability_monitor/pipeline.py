@@ -19,7 +19,7 @@ from amb_dynamics.estimate_period import PeriodEstimate, estimate_base_period
 from amb_dynamics.estimate_stream import Estimate, EstimatorConfig, StreamingEstimator
 
 FORCING_CHOICES = ("auto", "none", "constant", "alternating", "two_periods")
-IMU_TRY_EVERY = 256  # base-rate samples between attempts to find the period
+IMU_TRY_EVERY = 64  # base-rate samples between attempts to find the period (64 ms at the 1 kHz lockstep /base/imu)
 SAMPLE_TIME_FROM = 8  # sample spacings that fix the sample time (median)
 
 
