@@ -389,7 +389,10 @@ def main() -> dict:
         cost = bench_recording_cost(tmp)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    print("recorder throughput, lockstep mix (clock, imu, angular acc., displacement, current, 28-DOF state)")
+    print(
+        "recorder throughput, lockstep mix (displacement, current per step; clock, imu, angular acc. per 5; state "
+        "and base-rate blocks per 25)"
+    )
     print(f"  (write path best of 3 runs of {sum(published_in(WRITE_STEPS)):,} messages)")
     for c, r in write.items():
         print(f"  write path, {c:<4}  {r['msg_per_s']:10,.0f} msg/s  {r['bytes_per_msg_on_disk']:6.1f} B/msg on disk "
