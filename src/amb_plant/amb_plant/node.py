@@ -136,7 +136,6 @@ class PlantNode(RigNode):
         self.latest_rates = (np.zeros(3), np.zeros(3))
         self.k_now = 0  # lockstep: the step being computed; realtime: the current tick
         self.sample_index: dict[int, int] = {}  # realtime: stamp of a published sample -> its tick
-        self._last_cmd_stamp = -1
 
     def initial_state(self, disk_v: float) -> np.ndarray:
         n = self.model.n
@@ -150,32 +149,31 @@ class PlantNode(RigNode):
         return x
 
     # -- receive handlers (called from the loops and from executor callbacks) -------------------------
-    def _step_of(self, topic: str, t_ns: int) -> int | None:
-        if self.mode == "realtime":
-            self._last_cmd_stamp = t_ns
-            return self.k_now
-        if t_ns % self.Ts_ns:
-            self.counters.reject(topic, f"stamp {t_ns} ns is not on the {self.Ts_ns} ns sample grid")
+    def _grid_steps(self, topic: str, stamps: np.ndarray) -> np.ndarray | None:
+        """Lockstep step indices of ``stamps`` (ns); None (the message rejected) if one is off the sample grid."""
+        off = stamps % self.Ts_ns
+        if np.any(off):
+            bad = int(np.ravel(stamps)[np.argmax(np.ravel(off) != 0)])
+            self.counters.reject(topic, f"stamp {bad} ns is not on the {self.Ts_ns} ns sample grid")
             return None
-        return t_ns // self.Ts_ns
-
-    def _decode(self, topic: str, decoder, raw: bytes):
-        got = self.counters.decode(topic, decoder, raw)
-        if got is None:
-            return None, None
-        return self._step_of(topic, got[0]), got[1]
+        return stamps // self.Ts_ns
 
     def on_command(self, raw: bytes) -> None:
-        k, current = self._decode(m.CURRENT, self.cmd_decoder, raw)
-        if k is None:
+        got = self.counters.decode(m.CURRENT, self.cmd_decoder, raw)
+        if got is None:
             return
+        t_ns, current = got
         if self.mode == "realtime":
-            answered = self.sample_index.get(self._last_cmd_stamp)
+            answered = self.sample_index.get(t_ns)
             if answered is None:
                 self.counters.reject(m.CURRENT, "command answers no sample of this plant (or one too old)")
             else:
                 self.policy.command(current.copy(), answered)
-        elif k == self.k_now and not self.finished:
+            return
+        k = self._grid_steps(m.CURRENT, t_ns)
+        if k is None:
+            return
+        if k == self.k_now and not self.finished:
             self.commands[k] = current.copy()
         else:
             self.counters.reject(m.CURRENT, f"command for step {k} while at step {self.k_now}")
@@ -186,17 +184,13 @@ class PlantNode(RigNode):
         if got is None:
             return
         stamps, rows = got
-        off_grid = stamps % self.Ts_ns
-        if off_grid.any():
-            bad = int(stamps[np.argmax(off_grid != 0)])
-            self.counters.reject(m.BASE_RATES, f"stamp {bad} ns is not on the {self.Ts_ns} ns sample grid")
+        steps = self._grid_steps(m.BASE_RATES, stamps)
+        if steps is None:
             return
-        first = int(stamps[0]) // self.Ts_ns
-        if first < self.k_now:
-            self.counters.reject(m.BASE_RATES, f"block from step {first} arrived after step {self.k_now} began")
+        if steps[0] < self.k_now:
+            self.counters.reject(m.BASE_RATES, f"block from step {steps[0]} arrived after step {self.k_now} began")
             return
-        for k, row in zip((stamps // self.Ts_ns).tolist(), rows, strict=True):
-            self.rates[k] = row
+        self.rates.update(zip(steps.tolist(), rows, strict=True))
 
     def on_imu(self, raw: bytes) -> None:
         """Realtime: the latest Omega."""
