@@ -30,7 +30,9 @@ from .summary import build_summary, format_summary
 from .supervisor import Supervisor, describe_exit
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
-PEER_DEATH_GRACE_S = 12.0  # > the plant's default command_timeout_s (10 s)
+# after a node died, the plant may take its command timeout (10 s) and then up to 2 s for each of its three data
+# writers and 2 s for its final diagnostics to be acknowledged before it exits on its own: 18 s at most
+PEER_DEATH_GRACE_S = 20.0
 
 
 def parser() -> argparse.ArgumentParser:
