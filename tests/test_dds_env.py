@@ -3,10 +3,11 @@
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
-from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds
+from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds, hold_run_lock
 
 
 def test_session_environment_is_localhost_only():
@@ -43,6 +44,29 @@ def test_concurrent_reservations_never_share_a_domain():
             p.kill()
             p.wait()
     assert len(set(ids)) == 4 and int(os.environ["ROS_DOMAIN_ID"]) not in ids
+
+
+def test_run_lock_is_exclusive_until_every_holder_has_closed_it():
+    domain = f"test-{os.getpid()}"
+    first = hold_run_lock(domain)
+    waited = []
+    with pytest.raises(
+        DdsEnvError, match=rf"ROS_DOMAIN_ID={domain} is used by another amb-rig run \(amb-rig pid {os.getpid()}"
+    ):
+        hold_run_lock(domain, wait_s=0.3, on_wait=waited.append)
+    assert waited == [f"amb-rig pid {os.getpid()}"]  # told once, with the holder
+    # a child that inherited the lock (a node of the run) keeps it after the first holder closed its copy
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"], pass_fds=(first.fileno(),))
+    try:
+        first.close()
+        with pytest.raises(DdsEnvError):
+            hold_run_lock(domain)
+    finally:
+        child.kill()
+        child.wait()
+    last = hold_run_lock(domain)  # free once the last holder is gone
+    Path(last.name).unlink()
+    last.close()
 
 
 def test_makefile_and_ci_set_localhost(repo):

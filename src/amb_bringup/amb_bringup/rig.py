@@ -3,7 +3,8 @@
     amb-rig run --duration 5 --motion pitch --amplitude 0.3 --frequency 24.5 [--mode lockstep|realtime]
                 [--set key=value]... [--config F] [--param NODE:NAME=VALUE]... [--json] [--no-plant] [--bag DIR]
 
-Sequence: reserve a DDS domain (localhost only), start amb-rig's diagnostics collector, start the processes
+Sequence: reserve a DDS domain (localhost only), start amb-rig's diagnostics collector, refuse to start if the
+domain already carries the topics this run publishes (another rig, an orphan, a player), start the processes
 (extras, base_motion, controller, plant), wait (bounded by --start-timeout) until every node reports on
 /diagnostics and the plant reports that it runs (the plant itself waits until controller and base motion are
 matched), then wait for the plant to finish its --duration (or, with --no-plant, for --duration of wall time),
@@ -15,6 +16,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import shutil
 import signal
 import sys
 import tempfile
@@ -23,8 +26,9 @@ from pathlib import Path
 
 from amb_dynamics.config import load_config
 from amb_dynamics.errors import AmbError
-from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds
+from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds, hold_run_lock
 
+from .domain import Watch, describe, foreign_publishers, topics_of
 from .processes import all_specs
 from .summary import build_summary, format_summary
 from .supervisor import Supervisor, describe_exit
@@ -33,6 +37,7 @@ EXIT_FAILED, EXIT_USAGE = 1, 2
 # after a node died, the plant may take its command timeout (10 s) and then up to 2 s for each of its three data
 # writers and 2 s for its final diagnostics to be acknowledged before it exits on its own: 18 s at most
 PEER_DEATH_GRACE_S = 20.0
+LOCK_WAIT_S = 10.0  # for the domain's previous run to end: its nodes may still be exiting (bounded ack waits)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -75,6 +80,10 @@ def parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _say_waiting(holder: str) -> None:
+    print(f"amb-rig: waiting up to {LOCK_WAIT_S:g} s for the domain's other run ({holder}) to end", file=sys.stderr)
+
+
 class Interrupted:
     def __init__(self):
         self.signum: int | None = None
@@ -88,6 +97,7 @@ def main(argv: list[str] | None = None) -> None:
     try:
         ensure_localhost_dds()
         cfg = load_config(args.config, args.set)  # validate before starting anything
+        lock = hold_run_lock(os.environ["ROS_DOMAIN_ID"], LOCK_WAIT_S, _say_waiting)
     except (AmbError, DdsEnvError) as exc:
         raise SystemExit(f"amb-rig: {exc}") from None
     if args.duration <= 0 and not args.no_plant:
@@ -100,10 +110,11 @@ def main(argv: list[str] | None = None) -> None:
             "amb-rig: --rt-priority in lockstep needs --no-monitor and no --bag (a SCHED_FIFO loop "
             "starves them: they would lose samples)"
         )
-    sys.exit(run(args, cfg))
+    sys.exit(run(args, cfg, lock))
 
 
-def run(args, cfg) -> int:
+def run(args, cfg, lock) -> int:
+    """One run; ``lock`` is the domain's run lock (an open file), passed on to every child."""
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
@@ -119,9 +130,20 @@ def run(args, cfg) -> int:
     interrupted = Interrupted()
     signal.signal(signal.SIGINT, interrupted)
     signal.signal(signal.SIGTERM, interrupted)
+    domain = os.environ["ROS_DOMAIN_ID"]  # set by ensure_localhost_dds
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     collector = DiagnosticsCollector()
-    sup = Supervisor(log_dir, child_env(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1"))
+    topics = topics_of(spec.name for spec in specs)
+    found = foreign_publishers(collector.node, topics)
+    if found:  # before anything starts: the other run must not see this one's nodes either
+        collector.close()
+        rclpy.try_shutdown()
+        if not args.log_dir:
+            shutil.rmtree(log_dir, ignore_errors=True)
+        print(f"amb-rig: {describe(found, domain)}", file=sys.stderr)
+        return EXIT_FAILED
+    watch = Watch(collector.node, topics, domain)
+    sup = Supervisor(log_dir, child_env(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1"), (lock.fileno(),))
     errors: list[str] = []
     t0 = time.monotonic()
     try:
@@ -129,7 +151,7 @@ def run(args, cfg) -> int:
             child = sup.start(spec)
             print(f"amb-rig: started {spec.name} (pid {child.pid}), log {child.log}", file=sys.stderr, flush=True)
         if not errors:
-            errors += wait_run(args, sup, collector, interrupted)
+            errors += wait_run(args, sup, collector, interrupted, watch)
     finally:
         sup.stop_all()
         time.sleep(0.2)  # final diagnostics were acknowledged before the nodes exited; let the thread store them
@@ -182,7 +204,7 @@ def plant_running_for(collector, plant) -> float:
         return 0.0
 
 
-def wait_run(args, sup: Supervisor, collector, interrupted) -> list[str]:
+def wait_run(args, sup: Supervisor, collector, interrupted, watch: Watch) -> list[str]:
     """Wait for start-up, then for the end of the run; return error messages (empty: all went well)."""
     plant = sup.find("plant")
     nodes = [c for c in sup.children if c.spec.node]
@@ -192,6 +214,8 @@ def wait_run(args, sup: Supervisor, collector, interrupted) -> list[str]:
             break
         if sup.died_early():
             break
+        if intruder := watch.check():
+            return [intruder]
         silent = [c.spec.name for c in nodes if not collector.seen(c.spec.node)]
         plant_diag = collector.get(plant.spec.node) if plant is not None else None
         waiting = plant is not None and (plant_diag is None or plant_diag["values"].get("steps") in (None, "0"))
@@ -208,6 +232,8 @@ def wait_run(args, sup: Supervisor, collector, interrupted) -> list[str]:
     while interrupted.signum is None:
         if plant is not None and plant.poll() is not None:
             break
+        if intruder := watch.check():
+            return [intruder]
         if sup.died_early():
             # a peer died: give the plant time to notice (command timeout) and report it before stopping it
             grace_end = grace_end or time.monotonic() + (PEER_DEATH_GRACE_S if plant is not None else 0.0)

@@ -60,7 +60,7 @@ def describe_exit(code: int | None) -> str:
 
 
 class Child:
-    def __init__(self, spec: ProcessSpec, log_dir: Path, env: dict):
+    def __init__(self, spec: ProcessSpec, log_dir: Path, env: dict, pass_fds: tuple[int, ...] = ()):
         self.spec = spec
         self.log = log_dir / f"{spec.name}.log"
         self._fh = open(self.log, "wb")
@@ -73,6 +73,7 @@ class Child:
             stdin=subprocess.DEVNULL,
             start_new_session=True,
             preexec_fn=_pdeathsig,
+            pass_fds=pass_fds,
         )
         self.stopped_by_us = False
         self.exited_at: float | None = None
@@ -109,12 +110,13 @@ class Child:
 class Supervisor:
     """Starts the specs in order and stops them in reverse order."""
 
-    def __init__(self, log_dir: Path, env: dict):
-        self.log_dir, self.env = log_dir, env
+    def __init__(self, log_dir: Path, env: dict, pass_fds: tuple[int, ...] = ()):
+        """``pass_fds``: descriptors every child keeps open (the run's domain lock)."""
+        self.log_dir, self.env, self.pass_fds = log_dir, env, pass_fds
         self.children: list[Child] = []
 
     def start(self, spec: ProcessSpec) -> Child:
-        child = Child(spec, self.log_dir, self.env)
+        child = Child(spec, self.log_dir, self.env, self.pass_fds)
         self.children.append(child)
         return child
 

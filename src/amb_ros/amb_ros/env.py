@@ -2,7 +2,8 @@
 
 This module imports no ROS code, so it can run before ``rclpy.init``.  ``ensure_localhost_dds()`` is the
 first call of every entry point that may start DDS; ``reserve_domain_id()`` gives a test session or an
-``amb-rig`` run a ROS_DOMAIN_ID that no concurrent run on this machine holds (an exclusive file lock).
+``amb-rig`` run a ROS_DOMAIN_ID that no concurrent run on this machine holds (an exclusive file lock);
+``hold_run_lock()`` keeps a second ``amb-rig`` off a domain given explicitly that a running rig already uses.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import fcntl
 import os
 import random
 import tempfile
+import time
 from pathlib import Path
 
 LOCALHOST = "LOCALHOST"
@@ -56,6 +58,41 @@ def reserve_domain_id(seed: int | None = None) -> int:
         _held_locks.append(fh)
         return domain
     raise DdsEnvError(f"every ROS_DOMAIN_ID in {DOMAIN_RANGE.start}..{DOMAIN_RANGE.stop - 1} is in use")
+
+
+def hold_run_lock(domain: str, wait_s: float = 0.0, on_wait=None):
+    """Lock ``domain`` for one rig run and return the open lock file; raise DdsEnvError if a run holds it.
+
+    Pass the file to the run's children (``pass_fds``): the lock is released when the last of them has exited,
+    so nodes still shutting down after amb-rig itself was killed keep the domain too.  A held lock is retried
+    for ``wait_s`` (the nodes of a run that just ended may still be exiting); ``on_wait(holder)`` is called once
+    when the wait begins.
+    """
+    fh = open(Path(tempfile.gettempdir()) / f"amb-rig-run-domain-{domain}.lock", "a+")
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            break
+        except OSError:
+            fh.seek(0)
+            holder = fh.read().strip() or "a process"
+        if time.monotonic() >= deadline:
+            fh.close()
+            raise DdsEnvError(
+                f"ROS_DOMAIN_ID={domain} is used by another amb-rig run ({holder} or its nodes): two rigs on one "
+                "domain would mix their samples. Stop it, or give this run another ROS_DOMAIN_ID (unset, amb-rig "
+                "picks a free one)"
+            )
+        if on_wait is not None:
+            on_wait(holder)
+            on_wait = None
+        time.sleep(0.1)
+    fh.seek(0)
+    fh.truncate()
+    fh.write(f"amb-rig pid {os.getpid()}")
+    fh.flush()
+    return fh
 
 
 def child_env(base: dict | None = None, **extra: str) -> dict:

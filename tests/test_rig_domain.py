@@ -1,0 +1,100 @@
+"""One rig per DDS domain: a second amb-rig, a player or any other publisher of the rig's topics is refused.
+
+Without the guards a second run on the same ROS_DOMAIN_ID matched the first one's readers: the plant stepped on
+the other rig's commands (measured before the fix: 1,034 rejected commands, zero displacement, and the summary
+still said OK).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import time
+
+import pytest
+from test_rig_lockstep import rig_json
+
+from amb_bringup.domain import WATCH_PERIOD_S, Watch, describe, topics_of
+from amb_bringup.rig import LOCK_WAIT_S
+from amb_ros import messages as m
+from procs import spawn
+
+pytestmark = pytest.mark.ros
+
+
+def test_second_rig_on_the_same_domain_is_refused_and_the_first_is_untouched(tmp_path, venv_bin):
+    rig = str(venv_bin / "amb-rig")
+    # long enough to outlast the second one's wait for the domain (LOCK_WAIT_S): about 20 s of wall time
+    first = [rig, "run", "--duration", "8", "--no-monitor", "--json", "--log-dir", str(tmp_path / "first")]
+    with spawn(first, tmp_path / "first.log") as proc:
+        assert proc.wait_for("started plant", 60), proc.text()
+        with spawn([rig, "run", "--duration", "1", "--no-monitor"], tmp_path / "second.log") as second:
+            code = second.wait(60)
+            text = second.text()
+        assert code == 1, text
+        assert proc.popen.poll() is None, proc.text()
+        assert f"waiting up to {LOCK_WAIT_S:g} s for the domain's other run" in text
+        assert f"ROS_DOMAIN_ID={os.environ['ROS_DOMAIN_ID']} is used by another amb-rig run" in text
+        assert re.search(rf"amb-rig pid {proc.popen.pid}\b", text), text
+        assert "started" not in text and "Traceback" not in text  # refused before any node was spawned
+        assert proc.wait(120) == 0, proc.text()
+        s = rig_json(proc.text())
+    assert s["ok"]
+    plant = s["nodes"]["plant"]["values"]
+    assert int(plant["steps"]) == 8 * s["rate_hz"]  # every step of the first run, none from the refused one
+    assert plant["rejected total"] == "0"
+
+
+def test_a_player_on_the_domain_fails_the_run_with_the_reason(tmp_path, venv_bin, repo):
+    player = [str(venv_bin / "amb-bag"), "play", "--loop", "--rate", "0.1", str(repo / "bags" / "sample_pitch")]
+    with spawn(player, tmp_path / "player.log") as play:
+        time.sleep(2.0)  # the player is publishing
+        assert play.popen.poll() is None, play.text()
+        rig = [str(venv_bin / "amb-rig"), "run", "--duration", "2", "--no-monitor", "--log-dir", str(tmp_path / "l")]
+        with spawn(rig, tmp_path / "rig.log") as proc:
+            code = proc.wait(120)
+            text = proc.text()
+    assert code == 1, text
+    assert "[OK]" not in text and "Traceback" not in text
+    # found before the start (discovery was quick) or while running (the watch): the same reason either way
+    line = next(ln for ln in text.splitlines() if "is in use:" in ln)
+    assert f"ROS_DOMAIN_ID={os.environ['ROS_DOMAIN_ID']} is in use:" in line
+    assert any(topic in line for topic in topics_of(["base_motion", "controller", "plant"])), line
+
+
+@pytest.fixture
+def two_nodes():
+    import rclpy
+
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    nodes = [rclpy.create_node(name, context=ctx) for name in ("watch_a", "watch_b")]
+    yield nodes
+    for node in nodes:
+        node.destroy_node()
+    rclpy.shutdown(context=ctx)
+
+
+def test_watch_counts_publishers_per_topic(two_nodes):
+    """Watch reports a topic only once it has a second publisher, naming both nodes."""
+    from sensor_msgs.msg import JointState
+
+    a, b = two_nodes
+    watch = Watch(a, [m.CURRENT, m.DISPLACEMENT], "7")
+    a.create_publisher(JointState, m.CURRENT, 10)
+    a.create_publisher(JointState, m.DISPLACEMENT, 10)
+    time.sleep(1.0)
+    assert watch.check() is None  # one publisher per topic: this run's own
+    b.create_publisher(JointState, m.CURRENT, 10)
+    end, message = time.monotonic() + 10, None
+    while message is None and time.monotonic() < end:
+        time.sleep(WATCH_PERIOD_S)
+        message = watch.check()
+    assert message == describe({m.CURRENT: ["/watch_a", "/watch_b"]}, "7", "joined this run")
+    assert m.DISPLACEMENT not in message
+
+
+def test_topics_of_the_spawned_nodes():
+    assert topics_of(["plant"]) == sorted([m.DISPLACEMENT, m.STATE, m.CLOCK])
+    # --no-plant: a real rig's /amb/displacement is expected, not an intruder
+    assert m.DISPLACEMENT not in topics_of(["base_motion", "controller", "recorder"])
