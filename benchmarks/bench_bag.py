@@ -6,21 +6,13 @@
    (reliable, KEEP_ALL, so a lagging recorder slows the publisher instead of losing messages); the rate is
    messages recorded / span of their reception times, and the loss table must be all zeros.
 
-3. Recording cost: lockstep steps/s of ``amb-rig run --duration RIG_DURATION --no-monitor`` without and with
-   ``--bag`` (the recorder started by amb-rig, every reader matched before step 0), alternating runs in this
-   invocation (the machine's load drifts); steps/s is the plant's loop rate from ``amb-rig run --json``
-   (``steps_per_s``, start-up excluded).  Cost = median over the back-to-back pairs of 1 - with / without
-   (robust to load drifting between pairs); goal < 20 %.  Control: the same run beside a bare raw reader of the
-   rig's topics that takes every message and writes nothing (niced and batched like the recorder): the cost of
-   one more DDS reader alone, which no recorder can go below.
+The recording cost of the lockstep loop is benchmarks/bench_recording_cost.py.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -39,9 +31,6 @@ E2E_STEPS = 5_000
 GOAL_MSG_S = 50_000
 ROUNDS = 3  # flood rounds (bimodal DDS delivery: ~10k or ~30-60k msg/s per round, see docs/bags.md)
 PACED_STEPS_S = 4000  # 20,160 msg/s offered: above what the recorder sustains here, so it shows its capacity
-RIG_DURATION = 2.0  # simulated s per lockstep run (10,000 steps at 5 kHz)
-RIG_PAIRS = 5  # alternating runs without / with --bag (and beside the bare reader)
-GOAL_COST = 0.20
 BIN = Path(sys.executable).parent
 
 
@@ -241,135 +230,6 @@ def bench_end_to_end(tmp: Path, steps: int = E2E_STEPS, rate: float = 0.0) -> di
     }
 
 
-RIG_TOPICS = tuple(EVERY)
-GATES = (
-    "plant:min_subscribers=2",
-    "plant:min_state_subscribers=1",
-    "base_motion:min_rates_subscribers=2",
-    "base_motion:min_imu_subscribers=1",
-    "base_motion:min_acceleration_subscribers=1",
-)  # every sample reaches the bare reader too
-READER_GATES = [a for g in GATES for a in ("--param", g)]
-
-
-def bare_reader() -> None:
-    """Raw subscriptions to the rig's topics (lockstep QoS); take everything every 5 ms until SIGINT."""
-    import signal
-
-    import rclpy
-    from geometry_msgs.msg import Vector3Stamped
-    from rosgraph_msgs.msg import Clock
-    from sensor_msgs.msg import Imu, JointState
-    from trajectory_msgs.msg import JointTrajectory
-
-    from amb_ros.node_base import lower_priority
-    from amb_ros.qos import lockstep_qos
-
-    types = {
-        "/clock": Clock,
-        "/base/rates": JointTrajectory,
-        "/base/imu": Imu,
-        "/base/angular_acceleration": Vector3Stamped,
-        "/amb_plant/state": JointTrajectory,
-    }
-    rclpy.init()
-    node = rclpy.create_node("bench_bare_reader")
-    subs = [node.create_subscription(types.get(t, JointState), t, lambda _: None, lockstep_qos(), raw=True)
-            for t in RIG_TOPICS]  # fmt: skip
-    lower_priority(5)
-    stop = []
-    signal.signal(signal.SIGINT, lambda *_: stop.append(1))
-    taken = 0
-    while not stop:
-        time.sleep(0.005)
-        for sub in subs:
-            while sub.handle.take_message(sub.msg_type, True) is not None:
-                taken += 1
-    print(json.dumps({"taken": taken}), flush=True)
-
-
-def rig_steps_per_s(bag: Path | None, reader: bool = False) -> dict:
-    """One lockstep ``amb-rig run`` without the monitor, optionally recorded into ``bag`` or beside a bare
-    reader: plant steps/s."""
-    import signal
-
-    from amb_ros.env import child_env
-
-    cmd = [str(BIN / "amb-rig"), "run", "--json", "--no-monitor", "--duration", str(RIG_DURATION),
-           "--set", "controller.current_limit=1e9"]  # fmt: skip
-    if bag is not None:
-        cmd += ["--bag", str(bag)]
-    proc = None
-    if reader:
-        cmd += READER_GATES
-        proc = subprocess.Popen([sys.executable, __file__, "--reader"], env=child_env(), stdout=subprocess.PIPE,
-                                text=True)  # fmt: skip
-    try:
-        out = subprocess.run(cmd, env=child_env(), capture_output=True, text=True, timeout=600)
-    finally:
-        if proc is not None:
-            proc.send_signal(signal.SIGINT)
-            proc.communicate(timeout=30)
-    try:
-        summary = json.loads(out.stdout)
-    except json.JSONDecodeError:
-        raise RuntimeError(f"amb-rig failed: {out.stderr.strip()[-500:]}") from None
-    if not summary["ok"]:
-        raise RuntimeError(f"amb-rig: {summary['errors']}")
-    row = {"steps": summary["steps"], "steps_per_s": summary["steps_per_s"]}
-    if bag is not None:
-        rec = summary["nodes"]["recorder"]["values"]
-        row.update(messages=int(rec["messages written"]), lost=int(rec["lost total"]))
-    return row
-
-
-def bench_recording_cost(tmp: Path, pairs: int = RIG_PAIRS) -> dict:
-    """Lockstep steps/s without and with recording (and beside a bare reader), alternating runs in this invocation.
-
-    A run that fails is reported (``failed_runs``) and its pair left out of the medians, not hidden by a retry.
-    """
-    without, with_bag, with_reader, failed = [], [], [], []
-
-    def attempt(label: str, **kwargs) -> dict | None:
-        try:
-            return rig_steps_per_s(**kwargs)
-        except RuntimeError as exc:
-            failed.append(f"{label}: {exc}")
-            return None
-
-    for i in range(pairs):
-        base = attempt(f"pair {i + 1} without --bag", bag=None)
-        rec = attempt(f"pair {i + 1} with --bag", bag=tmp / f"rig{i}")
-        shutil.rmtree(tmp / f"rig{i}", ignore_errors=True)
-        bare = attempt(f"pair {i + 1} beside the bare reader", bag=None, reader=True)
-        if base is not None:
-            without.append(base)
-            with_bag.append(rec)
-            with_reader.append(bare)
-    pairs_bag = [(a, b) for a, b in zip(without, with_bag, strict=True) if b is not None]
-    pairs_reader = [(a, b) for a, b in zip(without, with_reader, strict=True) if b is not None]
-    if not pairs_bag or not pairs_reader:
-        raise RuntimeError(f"no complete pair of lockstep runs: {failed}")
-    pair_costs = [1.0 - b["steps_per_s"] / a["steps_per_s"] for a, b in pairs_bag]
-    reader_costs = [1.0 - b["steps_per_s"] / a["steps_per_s"] for a, b in pairs_reader]
-    cost = statistics.median(pair_costs)
-    return {
-        "steps_per_s_without_bag": statistics.median(a["steps_per_s"] for a, _ in pairs_bag),
-        "steps_per_s_with_bag": statistics.median(b["steps_per_s"] for _, b in pairs_bag),
-        "cost": cost,
-        "pair_costs": pair_costs,
-        "runs_without": [a["steps_per_s"] for a, _ in pairs_bag],
-        "runs_with": [b["steps_per_s"] for _, b in pairs_bag],
-        "runs_with_bare_reader": [b["steps_per_s"] for _, b in pairs_reader],
-        "bare_reader_cost": statistics.median(reader_costs),
-        "bare_reader_costs": reader_costs,
-        "messages_per_run": pairs_bag[0][1]["messages"],
-        "lost": sum(b["lost"] for _, b in pairs_bag),
-        "failed_runs": failed,
-        "goal_met": cost < GOAL_COST,
-    }
-
-
 def main() -> dict:
     tmp = Path(tempfile.mkdtemp(prefix="bench_bag_"))
     try:
@@ -386,7 +246,6 @@ def main() -> dict:
         e2e["lost"] = sum(r["lost"] for r in floods)
         e2e["bare_subscriber"] = max(sinks, key=lambda r: r["msg_per_s"])
         paced = bench_end_to_end(tmp, 2 * E2E_STEPS, rate=PACED_STEPS_S)
-        cost = bench_recording_cost(tmp)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     print(
@@ -405,22 +264,7 @@ def main() -> dict:
     base = e2e["bare_subscriber"]["msg_per_s"]
     print(f"  bare raw subscriber (DDS limit, same flood) {base:10,.0f} msg/s, best of {ROUNDS}")
     print(f"  ratio recorder / bare subscriber: {e2e['msg_per_s'] / base:.2f}")
-    print(f"recording cost, lockstep amb-rig run --duration {RIG_DURATION:g} --no-monitor, {RIG_PAIRS} pairs of "
-          f"back-to-back runs without / with --bag")  # fmt: skip
-    print(f"  without --bag {cost['steps_per_s_without_bag']:8,.0f} steps/s  "
-          f"(runs: {', '.join(f'{x:,.0f}' for x in cost['runs_without'])})")  # fmt: skip
-    print(f"  with --bag    {cost['steps_per_s_with_bag']:8,.0f} steps/s  "
-          f"(runs: {', '.join(f'{x:,.0f}' for x in cost['runs_with'])}; {cost['messages_per_run']:,} messages "
-          f"per bag, lost {cost['lost']})")  # fmt: skip
-    print(f"  cost of recording: {100 * cost['cost']:.1f} % of steps/s, median of the pairs "
-          f"({', '.join(f'{100 * c:.1f} %' for c in cost['pair_costs'])}); goal < {100 * GOAL_COST:.0f} %: "
-          f"{'ok' if cost['goal_met'] else 'MISSED'}")  # fmt: skip
-    print(f"  control: beside a bare raw reader of the same topics (takes, writes nothing) "
-          f"{100 * cost['bare_reader_cost']:.1f} % ({', '.join(f'{100 * c:.1f} %' for c in cost['bare_reader_costs'])})"
-          f": the cost of one more DDS reader")  # fmt: skip
-    for line in cost["failed_runs"]:
-        print(f"  FAILED run (its pair left out): {line}")
-    return {"write_path": write, "end_to_end": e2e, "paced": paced, "recording_cost": cost}
+    return {"write_path": write, "end_to_end": e2e, "paced": paced}
 
 
 if __name__ == "__main__":
@@ -429,11 +273,8 @@ if __name__ == "__main__":
     parser.add_argument("--no-diagnostics", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--sink", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--rate", type=float, default=0.0, help=argparse.SUPPRESS)
-    parser.add_argument("--reader", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.reader:
-        bare_reader()
-    elif args.flood:
+    if args.flood:
         flood_publisher(args.flood, diagnostics=not args.no_diagnostics, rate=args.rate)
     elif args.sink:
         bare_sink(args.sink)

@@ -1,9 +1,9 @@
 """A reader that stops taking holds the lockstep loop up: `.venv/bin/python tools/reader_stall.py 1.5`.
 
-Runs ``amb-rig run --no-monitor`` (8 s simulated) beside benchmarks/bench_bag.py's bare raw reader of every rig
-topic, SIGSTOPs the reader for the given seconds in mid-run, SIGCONTs it, and prints whether the run finished and
-the plant's longest command wait (docs/nodes.md, Faults: 1.5 s stopped gave 1.0-3.5 s in the runs where a stall
-happened, not in all; 0.3 s gave 6-13 ms).
+Runs ``amb-rig run --no-monitor`` (8 s simulated) beside benchmarks/bench_recording_cost.py's bare raw reader of
+every rig topic, SIGSTOPs the reader for the given seconds in mid-run, SIGCONTs it, and prints whether the run
+finished and the plant's longest command wait (docs/nodes.md, Faults: 1.5 s stopped gave 1.0-3.5 s in the runs
+where a stall happened, not in all; 0.3 s gave 6-13 ms).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-import bench_bag  # noqa: E402  (the bare reader and the gates that make the plant wait for it)
+import bench_recording_cost  # noqa: E402  (the bare reader and the gates that make the plant wait for it)
 
 from amb_ros.env import child_env  # noqa: E402
 
@@ -28,10 +28,10 @@ STOP_AFTER_S = 9.0  # wall time after start: start-up (~5 s) plus part of the ru
 
 def main(stop_s: float) -> None:
     env = child_env()
-    rig_cmd = [str(bench_bag.BIN / "amb-rig"), "run", "--json", "--no-monitor", "--duration", "8",
-               "--set", "controller.current_limit=1e9", *bench_bag.READER_GATES]  # fmt: skip
-    reader = subprocess.Popen([sys.executable, str(ROOT / "benchmarks" / "bench_bag.py"), "--reader"], env=env,
-                              stdout=subprocess.PIPE, text=True)  # fmt: skip
+    rig_cmd = [str(bench_recording_cost.BIN / "amb-rig"), "run", "--json", "--no-monitor", "--duration", "8",
+               "--set", "controller.current_limit=1e9", *bench_recording_cost.READER_GATES]  # fmt: skip
+    reader_cmd = [sys.executable, str(ROOT / "benchmarks" / "bench_recording_cost.py"), "--reader"]
+    reader = subprocess.Popen(reader_cmd, env=env, stdout=subprocess.PIPE, text=True)
     rig = subprocess.Popen(rig_cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:
         time.sleep(STOP_AFTER_S)
