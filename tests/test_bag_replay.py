@@ -173,7 +173,10 @@ def test_replay_into_monitor_equals_live_run(listen, venv_bin, tmp_path):
     assert live_final.get("final") == "true", live_final
     samples = int(live_final["samples"])
     assert samples == PERIODS * N + 1 and live_final["samples lost"] == "0"  # the live monitor saw every step
-    assert summary["nodes"]["recorder"]["values"]["lost total"] == "0"
+    rec = summary["nodes"]["recorder"]["values"]
+    assert rec["lost total"] == "0"
+    # the recorder's CPU (all its threads) is real work and at most its two cores' worth over the run
+    assert 0.0 < float(rec["cpu time (s)"]) < 2.0 * summary["run_wall_s"]
     n_live = len(live["multipliers"])
     assert n_live >= 30 and n_live == int(live_final["refits"])  # several refits; every one is in the bag
     assert live["flags"] == [False, True]  # the run is unstable: one raise, recorded
