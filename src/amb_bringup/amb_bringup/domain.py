@@ -35,18 +35,22 @@ def topics_of(names) -> list[str]:
     return sorted({topic for name in names for topic in PUBLISHES.get(name, ())})
 
 
+def publishers(node, topics, more_than: int = 0) -> dict[str, list[str]]:
+    """``{topic: [publishing node, ...]}`` for those ``topics`` that have more than ``more_than`` publishers."""
+    found = {}
+    for topic in topics:
+        infos = node.get_publishers_info_by_topic(topic)
+        if len(infos) > more_than:
+            found[topic] = sorted({_full_name(i.node_namespace, i.node_name) for i in infos})
+    return found
+
+
 def foreign_publishers(node, topics, probe_s: float = PROBE_S) -> dict[str, list[str]]:
-    """``{topic: [publishing node, ...]}`` for ``topics`` that already have publishers, watched for ``probe_s``."""
+    """Publishers already on ``topics`` (before this run starts any), watched for up to ``probe_s``."""
     deadline = time.monotonic() + probe_s
-    while True:
-        found = {}
-        for topic in topics:
-            infos = node.get_publishers_info_by_topic(topic)
-            if infos:
-                found[topic] = sorted({_full_name(i.node_namespace, i.node_name) for i in infos})
-        if found or time.monotonic() >= deadline:
-            return found
+    while not (found := publishers(node, topics)) and time.monotonic() < deadline:
         time.sleep(POLL_S)
+    return found
 
 
 def describe(found: dict[str, list[str]], domain: str, when: str = "already published") -> str:
@@ -74,11 +78,7 @@ class Watch:
         if now < self._next:
             return None
         self._next = now + WATCH_PERIOD_S
-        found = {}
-        for topic in self.topics:
-            infos = self.node.get_publishers_info_by_topic(topic)
-            if len(infos) > 1:
-                found[topic] = sorted({_full_name(i.node_namespace, i.node_name) for i in infos})
+        found = publishers(self.node, self.topics, more_than=1)
         return describe(found, self.domain, "joined this run") if found else None
 
 
