@@ -32,6 +32,7 @@ RIG_PAIRS = 5  # alternating runs without / with --bag (and beside each control)
 GOAL_COST = 0.20
 BURN_DUTY = 0.2  # the busy-loop control: a fifth of one core, about the recorder's share (measured)
 BURN_PERIOD_S = 0.01
+STALL_S = 0.5  # a plant command wait longer than this is a stall (the loop's round trip is ~0.4 ms)
 
 
 RIG_TOPICS = tuple(EVERY)  # the lockstep mix's topics (bench_bag)
@@ -122,10 +123,12 @@ def rig_steps_per_s(bag: Path | None, reader: bool = False, burn: float = 0.0) -
         raise RuntimeError(f"amb-rig failed: {out.stderr.strip()[-500:]}") from None
     if not summary["ok"]:
         raise RuntimeError(f"amb-rig: {summary['errors']}")
-    row = {"steps": summary["steps"], "steps_per_s": summary["steps_per_s"]}
+    plant = summary["nodes"]["plant"]["values"]
+    row = {"steps": summary["steps"], "steps_per_s": summary["steps_per_s"],
+           "wait_max_s": float(plant.get("command wait max (us)", "nan")) * 1e-6}  # fmt: skip
     if bag is not None:
         rec = summary["nodes"]["recorder"]["values"]
-        loop_wall = float(summary["nodes"]["plant"]["values"]["wall time (s)"])
+        loop_wall = float(plant["wall time (s)"])
         row.update(messages=int(rec["messages written"]), lost=int(rec["lost total"]),
                    recorder_cpu_share=float(rec["cpu time (s)"]) / loop_wall)  # fmt: skip
     return row
@@ -178,6 +181,8 @@ def bench_recording_cost(tmp: Path, pairs: int = RIG_PAIRS) -> dict:
         "busy_loop_cost": statistics.median(burner_costs),
         "busy_loop_costs": burner_costs,
         "recorder_cpu_share": statistics.median(b["recorder_cpu_share"] for _, b in pairs_bag),
+        "wait_max_without": [a["wait_max_s"] for a, _ in pairs_bag],
+        "wait_max_with": [b["wait_max_s"] for _, b in pairs_bag],
         "messages_per_run": pairs_bag[0][1]["messages"],
         "lost": sum(b["lost"] for _, b in pairs_bag),
         "failed_runs": failed,
@@ -207,6 +212,11 @@ def main() -> dict:
     print(f"  control: beside a busy loop taking {100 * BURN_DUTY:.0f} % of one core, no DDS "
           f"{100 * cost['busy_loop_cost']:.1f} % ({', '.join(f'{100 * c:.1f} %' for c in cost['busy_loop_costs'])})"
           f"; the recorder took {100 * cost['recorder_cpu_share']:.0f} % of one core (median)")  # fmt: skip
+    waits = {k: cost[f"wait_max_{k}"] for k in ("without", "with")}
+    stalls = {k: sum(w > STALL_S for w in v) for k, v in waits.items()}
+    print(f"  longest plant command wait per run (s): without --bag {', '.join(f'{w:.3f}' for w in waits['without'])}"
+          f"; with --bag {', '.join(f'{w:.3f}' for w in waits['with'])} (stalls over {STALL_S:g} s: without "
+          f"{stalls['without']}, with {stalls['with']} of {len(waits['with'])})")  # fmt: skip
     for line in cost["failed_runs"]:
         print(f"  FAILED run (its pair left out): {line}")
     return cost

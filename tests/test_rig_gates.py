@@ -32,3 +32,46 @@ def test_reader_gates_count_the_readers_that_come(argv, rates, imu, acc, state, 
     assert g["base_motion.min_acceleration_subscribers"] == acc
     assert g["plant.min_state_subscribers"] == state
     assert g["plant.min_subscribers"] == disp
+
+
+@pytest.mark.ros
+def test_a_late_peer_is_start_up_not_loop_time(tmp_path, venv_bin):
+    """base_motion held at its gate for ~2 s (a reader it waits for subscribes late, as a recorder still being
+    discovered does): the plant reports that wait as `start wait (s)`, and neither its per-step command waits
+    nor its loop rate (steps/s) contain it."""
+    import time
+
+    from geometry_msgs.msg import Vector3Stamped
+    from rosgraph_msgs.msg import Clock
+    from test_rig_lockstep import DdsRecorder, rig_json
+
+    from procs import spawn
+
+    late_s, duration = 2.0, 1.0
+    cmd = [str(venv_bin / "amb-rig"), "run", "--json", "--no-monitor", "--duration", str(duration),
+           "--log-dir", str(tmp_path / "logs"), "--param", "base_motion:min_acceleration_subscribers=1"]  # fmt: skip
+    clock = DdsRecorder({"/clock": Clock})  # the plant publishes /clock t_0 with step 0
+    late = None
+    try:
+        with spawn(cmd, tmp_path / "rig.log") as proc:
+            end = time.monotonic() + 60
+            while not clock.messages["/clock"] and time.monotonic() < end and proc.popen.poll() is None:
+                time.sleep(0.01)
+            assert clock.messages["/clock"], proc.text()
+            time.sleep(late_s)  # the plant waits for step 0's base sample meanwhile
+            t_late = time.monotonic()
+            late = DdsRecorder({"/base/angular_acceleration": Vector3Stamped})
+            assert proc.wait(120) == 0, proc.text()
+            t_end = time.monotonic()
+            s = rig_json(proc.text())
+    finally:
+        for rec in (clock, late):
+            if rec is not None:
+                rec.close()
+    plant = s["nodes"]["plant"]["values"]
+    assert s["ok"] and s["steps"] == round(duration * s["rate_hz"])
+    assert float(plant["start wait (s)"]) >= late_s
+    assert float(plant["command wait max (us)"]) * 1e-6 < late_s  # the per-step waits exclude it
+    # the loop is timed from step 0's inputs, which came after the late reader subscribed
+    assert float(plant["wall time (s)"]) <= t_end - t_late
+    assert s["steps_per_s"] == pytest.approx(s["steps"] / float(plant["wall time (s)"]), rel=1e-3)

@@ -51,7 +51,11 @@ def run_lockstep(node) -> None:
             # with the base sample in hand only the command matters: base samples arriving meanwhile (base_motion
             # runs ahead in bursts) then do not wake this loop
             node.waiter.wait(deadline - now, only_command if mats is not None else None)
-        node.round_trip.add(time.perf_counter() - t_sent)
+        if k == 0:  # start-up: the peers' own start gates (a recorder still being discovered) held step 0 up
+            node.start_wait_s = time.perf_counter() - t_sent
+            node.t_wall0 = time.monotonic()  # the loop rate is timed from here (start-up excluded)
+        else:
+            node.round_trip.add(time.perf_counter() - t_sent)
         node.advance(mats, node.commands.pop(k))
         timeout = node.p["command_timeout_s"]
         k += 1

@@ -110,6 +110,7 @@ class PlantNode(RigNode):
         self.skipped = 0
         self.t_wall0 = self.t_wall1 = None
         self.connect_s = 0.0
+        self.start_wait_s = 0.0  # lockstep: wait for step 0's base sample and command (peers still starting)
         qos = data_qos(self.mode, p["qos_depth"])
         self.disp_pub = self.create_publisher(JointState, m.DISPLACEMENT, qos)
         self.state_pub = self.create_publisher(JointTrajectory, m.STATE, qos)
@@ -351,6 +352,7 @@ class PlantNode(RigNode):
             out[f"peak {name} (m)"] = f"{peak:.6g}"
             out[f"peak {name} / air gap"] = f"{peak / self.air_gap:.6g}"
         if self.mode == "lockstep":
+            out["start wait (s)"] = f"{self.start_wait_s:.3f}"
             out.update(self.round_trip.summary("command wait"))
         else:
             pol = self.policy
