@@ -15,6 +15,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from .fastdds import use_rig_profile
+
 LOCALHOST = "LOCALHOST"
 DOMAIN_RANGE = range(10, 100)  # ids 0..101 are safe for Fast DDS ports on Linux
 _held_locks: list = []
@@ -25,7 +27,9 @@ class DdsEnvError(RuntimeError):
 
 
 def ensure_localhost_dds(env: dict | None = None) -> dict:
-    """Set ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST (and a domain id) unless set; refuse other ranges."""
+    """Set ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST (and a domain id) unless set; refuse other ranges.
+
+    Also points Fast DDS at the rig's profile (:mod:`amb_ros.fastdds`) unless the user gave one."""
     env = os.environ if env is None else env
     current = env.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "")
     if current and current.upper() != LOCALHOST:
@@ -39,6 +43,7 @@ def ensure_localhost_dds(env: dict | None = None) -> dict:
     env.pop("ROS_LOCALHOST_ONLY", None)
     if not env.get("ROS_DOMAIN_ID"):
         env["ROS_DOMAIN_ID"] = str(reserve_domain_id())
+    use_rig_profile(env)
     return env
 
 

@@ -65,6 +65,21 @@ def lower_priority(increment: int) -> str:
     return f"nice +{increment} ({len(tids)} threads)"
 
 
+def idle_priority() -> str:
+    """SCHED_IDLE for every thread of this process: it runs only on CPU time that no other thread wants.
+
+    For a consumer that must not slow the lockstep loop (the recorder): besides yielding the CPU it makes its
+    DDS receive threads wake later, so one wake-up takes several samples.  Threads created later inherit it.
+    """
+    tids = _thread_ids()
+    for tid in tids:
+        try:
+            os.sched_setscheduler(tid, os.SCHED_IDLE, os.sched_param(0))
+        except OSError:  # a thread that has just ended
+            continue
+    return f"SCHED_IDLE ({len(tids)} threads)"
+
+
 def set_realtime_priority(priority: int) -> str:
     """SCHED_FIFO for every thread of this process: the node's loop and the DDS threads that deliver to it.
 
