@@ -6,8 +6,8 @@ drifts); steps/s is the plant's loop rate from ``amb-rig run --json`` (``steps_p
 Cost = median over the back-to-back pairs of 1 - with / without (robust to load drifting between pairs); goal
 < 20 %.  Two controls in the same pairs:
 
-- beside a bare raw reader of the rig's topics that takes every message and writes nothing (niced and batched like
-  the recorder): the cost of one more DDS reader alone, which no recorder can go below;
+- beside a bare raw reader of the rig's topics that takes every message and writes nothing (scheduled and batched
+  like the recorder: SCHED_IDLE, 50 ms): the cost of one more DDS reader alone, which no recorder can go below;
 - beside a busy loop that takes BURN_DUTY of one core and no DDS at all, to compare with the recorder's own CPU
   share (its CPU time while recording / the loop's wall time, from its final diagnostics): on this 2-core machine
   any process of that size costs the loop about as much.
@@ -47,7 +47,7 @@ READER_GATES = [a for g in GATES for a in ("--param", g)]
 
 
 def bare_reader() -> None:
-    """Raw subscriptions to the rig's topics (lockstep QoS); take everything every 5 ms until SIGINT."""
+    """Raw subscriptions to the rig's topics (lockstep QoS); take everything every 50 ms until SIGINT."""
     import signal
 
     import rclpy
@@ -56,7 +56,7 @@ def bare_reader() -> None:
     from sensor_msgs.msg import Imu, JointState
     from trajectory_msgs.msg import JointTrajectory
 
-    from amb_ros.node_base import lower_priority
+    from amb_ros.node_base import idle_priority
     from amb_ros.qos import lockstep_qos
 
     types = {
@@ -70,12 +70,12 @@ def bare_reader() -> None:
     node = rclpy.create_node("bench_bare_reader")
     subs = [node.create_subscription(types.get(t, JointState), t, lambda _: None, lockstep_qos(), raw=True)
             for t in RIG_TOPICS]  # fmt: skip
-    lower_priority(5)
+    idle_priority()
     stop = []
     signal.signal(signal.SIGINT, lambda *_: stop.append(1))
     taken = 0
     while not stop:
-        time.sleep(0.005)
+        time.sleep(0.05)
         for sub in subs:
             while sub.handle.take_message(sub.msg_type, True) is not None:
                 taken += 1

@@ -25,6 +25,7 @@ batch of refits publishes every change of the flag, as one-by-one arrival does).
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import time
 
@@ -177,6 +178,7 @@ def test_replay_into_monitor_equals_live_run(listen, venv_bin, tmp_path):
     assert rec["lost total"] == "0"
     # the recorder's CPU (all its threads) is real work and at most its two cores' worth over the run
     assert 0.0 < float(rec["cpu time (s)"]) < 2.0 * summary["run_wall_s"]
+    assert re.fullmatch(r"SCHED_IDLE \(\d+ threads\)", rec["scheduling"])  # amb-rig's recorder: --priority idle
     n_live = len(live["multipliers"])
     assert n_live >= 30 and n_live == int(live_final["refits"])  # several refits; every one is in the bag
     assert live["flags"] == [False, True]  # the run is unstable: one raise, recorded

@@ -3,7 +3,7 @@
 Linux niceness and scheduling policy are per thread; the DDS threads that receive each message exist before a
 node lowers its priority, so a helper that changed the calling thread only would leave them competing with the
 loop.  Each case runs in a fresh interpreter with a few extra threads and reads every thread's value back from
-/proc (field 19 of /proc/self/task/<tid>/stat is the niceness).
+/proc (field 19 of /proc/self/task/<tid>/stat is the niceness) or sched_getscheduler.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import sys
 
 SCRIPT = """
 import json, os, threading, time
-from amb_ros.node_base import lower_priority
+from amb_ros.node_base import idle_priority, lower_priority
 
 stop = threading.Event()
 threads = [threading.Thread(target=stop.wait) for _ in range(3)]
@@ -23,17 +23,23 @@ for t in threads:
 def nice_of(tid):
     with open(f"/proc/self/task/{tid}/stat") as f:
         return int(f.read().rsplit(")", 1)[1].split()[16])
+def policy_of(tid):
+    return os.sched_getscheduler(int(tid)) == os.SCHED_IDLE
 before = {tid: nice_of(tid) for tid in os.listdir("/proc/self/task")}
-text = lower_priority(INCREMENT)
+text = CALL
 after = {tid: nice_of(tid) for tid in os.listdir("/proc/self/task")}
+idle = {tid: policy_of(tid) for tid in os.listdir("/proc/self/task")}
+late = threading.Thread(target=lambda: idle.update(late=policy_of(threading.get_native_id())))
+late.start()
+late.join()
 stop.set()
-print(json.dumps({"before": before, "after": after, "text": text}))
+print(json.dumps({"before": before, "after": after, "text": text, "idle": idle}))
 """
 
 
-def run(increment: int) -> dict:
+def run(call: str) -> dict:
     out = subprocess.run(
-        [sys.executable, "-c", SCRIPT.replace("INCREMENT", str(increment))],
+        [sys.executable, "-c", SCRIPT.replace("CALL", call)],
         capture_output=True,
         text=True,
         timeout=60,
@@ -43,12 +49,19 @@ def run(increment: int) -> dict:
 
 
 def test_lower_priority_renices_every_thread():
-    got = run(3)
+    got = run("lower_priority(3)")
     assert len(got["before"]) >= 4  # the main thread, three others (and any a library started on import)
     assert got["after"] == {tid: min(19, nice + 3) for tid, nice in got["before"].items()}
     assert got["text"] == f"nice +3 ({len(got['before'])} threads)"
 
 
 def test_lower_priority_stops_at_19():
-    got = run(25)
+    got = run("lower_priority(25)")
     assert set(got["after"].values()) == {19}
+
+
+def test_idle_priority_covers_every_thread_and_later_ones():
+    got = run("idle_priority()")
+    assert len(got["idle"]) >= 5 and all(got["idle"].values())  # four threads, then one started afterwards
+    assert got["after"] == got["before"]  # SCHED_IDLE, not niceness
+    assert got["text"] == f"SCHED_IDLE ({len(got['before'])} threads)"

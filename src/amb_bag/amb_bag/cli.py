@@ -22,7 +22,8 @@ EXIT_DAMAGED = 2
 
 
 def _cmd_record(args) -> int:
-    from .recorder import options_from_args, record
+    from .record_options import options_from_args
+    from .recorder import record
 
     record(options_from_args(args))
     return 0
@@ -79,7 +80,7 @@ def _cmd_plot(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .recorder import add_record_arguments
+    from .record_options import add_record_arguments
 
     parser = argparse.ArgumentParser(prog="amb-bag", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)

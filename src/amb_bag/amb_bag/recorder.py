@@ -31,42 +31,22 @@ import re
 import signal
 import sys
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 
 from . import msgdefs
 from .errors import BagError
 from .loss import DIAGNOSTICS_TOPIC, RECORDER_NAME, LossTracker, custom_data, format_table
 from .qos import RECORD_DEPTH, profile_to_dict, request_for_offers
-from .writer import DEFAULT_CHUNK_SIZE, BagWriter
+from .record_options import PRIORITIES, RecordOptions, add_record_arguments, options_from_args
+from .writer import BagWriter
 
 DRAIN_BATCH = 2000  # messages taken from one subscription before the others get a turn
+LOW_NICENESS = 5  # --priority low
+BUSY_DRAIN = 1000  # a drain this large means the recorder is behind: take the next batch without pausing
 WAIT_MAX_S = 0.05  # longest wait, so that signals, discovery and checkpoints are served promptly
 PREFIX = "amb-bag record:"
 NODE_NAME = RECORDER_NAME
 DIAGNOSTICS_PERIOD_S = 1.0
-
-
-@dataclass
-class RecordOptions:
-    """What to record and how (see ``amb-bag record --help``)."""
-
-    output: Path
-    topics: list[str] | None = None
-    include_hidden: bool = False
-    compression: str = "zstd"
-    chunk_size: int = DEFAULT_CHUNK_SIZE
-    split_size_mb: float | None = None
-    split_duration_s: float | None = None
-    discovery_interval_s: float = 0.1
-    flush_interval_s: float = 1.0
-    progress_interval_s: float = 0.25
-    qos_depth: int | None = None
-    duration_s: float | None = None
-    batch_s: float = 0.005
-    niceness: int = 5
-    debug_delay_s: float = 0.0  # test-only: sleep per message, to show that loss is reported
-    exclude: list[str] = field(default_factory=list)
 
 
 def _hidden(topic: str) -> bool:
@@ -91,6 +71,7 @@ class Recorder:
         self._wait_set = None
         self._wanted = {_normalise(t) for t in opts.topics} if opts.topics else None
         self._exclude = [re.compile(p) for p in opts.exclude]
+        self.scheduling = "normal"
         self._cpu0 = time.process_time()  # after start-up: the CPU the recording takes (all threads, DDS's too)
 
     # -- discovery ------------------------------------------------------------------------------------------
@@ -234,7 +215,8 @@ class Recorder:
             if self.diagnostics is not None and self.diagnostics.due():
                 self.publish_status()
             timeout = min(WAIT_MAX_S, next_scan - now, next_flush - now, next_progress - now, end - now)
-            if self._wait_and_drain(max(0.0, timeout)) and self.opts.batch_s:
+            taken = self._wait_and_drain(max(0.0, timeout))
+            if 0 < taken < BUSY_DRAIN and self.opts.batch_s:
                 time.sleep(self.opts.batch_s)  # let messages gather: one wake-up per batch, not per message
             now = time.monotonic()
         # Take what is already delivered, then a last short wait for messages still in flight.
@@ -247,7 +229,7 @@ class Recorder:
         lost = sum(r["lost"] or 0 for t, r in rows.items() if self.wanted(t))
         values = {f"received {t}": str(n) for t, n in sorted(self.received().items())}
         values.update({"messages written": str(self.writer.message_count), "lost total": str(lost),
-                       "cpu time (s)": f"{time.process_time() - self._cpu0:.3f}",
+                       "cpu time (s)": f"{time.process_time() - self._cpu0:.3f}", "scheduling": self.scheduling,
                        "bag": str(self.opts.output)})  # fmt: skip
         message = f"{self.writer.message_count} messages on {len(self.writer.topics)} topics, lost {lost}"
         return (1 if lost else 0), message, values
@@ -288,58 +270,13 @@ def _normalise(topic: str) -> str:
     return topic if topic.startswith("/") else "/" + topic
 
 
-def add_record_arguments(parser: argparse.ArgumentParser) -> None:
-    """Options of ``amb-bag record`` / ``ros2 run amb_bag record``."""
-    parser.add_argument("-o", "--output", required=True, type=Path, help="bag folder to create (must not exist)")
-    parser.add_argument("--topics", nargs="+", metavar="TOPIC", help="record only these topics (default: all)")
-    parser.add_argument("--exclude", nargs="+", default=[], metavar="REGEX", help="skip topics matching these")
-    parser.add_argument("--include-hidden", action="store_true", help="also record hidden topics (/_...)")
-    parser.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd", help="chunk compression")
-    parser.add_argument("--chunk-size", type=int, default=DEFAULT_CHUNK_SIZE, metavar="BYTES",
-                        help=f"uncompressed chunk size (default {DEFAULT_CHUNK_SIZE}); a crash loses one")  # fmt: skip
-    parser.add_argument("--split-size", type=float, metavar="MB", help="start a new file after this many MB")
-    parser.add_argument("--split-duration", type=float, metavar="S", help="start a new file every S seconds")
-    parser.add_argument("--flush-interval", type=float, default=1.0, metavar="S",
-                        help="finish the open chunk every S s (default 1): a crash loses at most that")  # fmt: skip
-    parser.add_argument("--progress-interval", type=float, default=0.25, metavar="S",
-                        help="write the progress file (counts for crash reports) every S s (default 0.25)")  # fmt: skip
-    parser.add_argument("--discovery-interval", type=float, default=0.1, metavar="S",
-                        help="graph scan period for new publishers (default 0.1 s)")  # fmt: skip
-    parser.add_argument("--qos-depth", type=int, metavar="N",
-                        help="KEEP_LAST N subscriptions instead of KEEP_ALL (may drop when behind)")  # fmt: skip
-    parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
-    parser.add_argument("--batch", type=float, default=5.0, metavar="MS",
-                        help="pause after each drain so that one wake-up takes many messages (default 5 ms; the "
-                        "publishers' history depth must cover it)")  # fmt: skip
-    parser.add_argument("--niceness", type=int, default=5, choices=range(20), metavar="N",
-                        help="added to the niceness of every recorder thread: the recorded loop gets the CPU first "
-                        "(default 5; 0 = off)")  # fmt: skip
-    parser.add_argument("--debug-delay-per-message", type=float, default=0.0, help=argparse.SUPPRESS)
-
-
-def options_from_args(args: argparse.Namespace) -> RecordOptions:
-    for name in ("chunk_size", "split_size", "split_duration", "flush_interval", "progress_interval",
-                 "discovery_interval", "qos_depth", "duration"):  # fmt: skip
-        value = getattr(args, name)
-        if value is not None and not value > 0:
-            raise BagError(f"--{name.replace('_', '-')} must be positive, got {value}")
-    if not 0 <= args.batch <= 1000:
-        raise BagError(f"--batch must be in 0..1000 ms, got {args.batch}")
-    return RecordOptions(
-        output=args.output, topics=args.topics, include_hidden=args.include_hidden, compression=args.compression,
-        chunk_size=args.chunk_size, split_size_mb=args.split_size, split_duration_s=args.split_duration,
-        discovery_interval_s=args.discovery_interval, flush_interval_s=args.flush_interval,
-        progress_interval_s=args.progress_interval,
-        qos_depth=args.qos_depth, duration_s=args.duration, debug_delay_s=args.debug_delay_per_message,
-        exclude=args.exclude, batch_s=args.batch * 1e-3, niceness=args.niceness,
-    )  # fmt: skip
-
-
 def record(opts: RecordOptions) -> dict:
     """Run a recording until SIGINT/SIGTERM or ``duration``; returns the loss rows."""
     from amb_ros.env import ensure_localhost_dds
 
     ensure_localhost_dds()
+    if opts.priority not in PRIORITIES:
+        raise BagError(f"unknown priority {opts.priority!r} (choose {', '.join(PRIORITIES)})")
     writer = BagWriter(
         opts.output, opts.compression, opts.chunk_size,
         split_size=int(opts.split_size_mb * 1e6) if opts.split_size_mb else None,
@@ -349,13 +286,15 @@ def record(opts: RecordOptions) -> dict:
     from rclpy.signals import SignalHandlerOptions
 
     from amb_ros.diagnostics import Diagnostics
-    from amb_ros.node_base import lower_priority
+    from amb_ros.node_base import idle_priority, lower_priority
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(NODE_NAME, enable_rosout=False, start_parameter_services=False)
     recorder = Recorder(node, opts, writer, diagnostics=Diagnostics(node, period_s=DIAGNOSTICS_PERIOD_S))
-    if opts.niceness:
-        lower_priority(opts.niceness)  # after the node exists: its DDS threads are niced too
+    if opts.priority == "idle":  # after the node exists, so that its DDS threads are included
+        recorder.scheduling = idle_priority()
+    elif opts.priority == "low":
+        recorder.scheduling = lower_priority(LOW_NICENESS)
 
     def request_stop(_signum, _frame):
         recorder.stop_requested = True
