@@ -9,6 +9,7 @@ lockstep plant fed bad /base/rates blocks rejects them and steps with the good b
 
 from __future__ import annotations
 
+import struct
 import time
 
 import numpy as np
@@ -49,6 +50,30 @@ def test_codec_bytes_match_rclpy_and_decode_foreign_buffers():
     msg = deserialize_message(imu.codec.encode(5, v), Imu)
     assert (msg.orientation.w, msg.angular_velocity.z, msg.linear_acceleration_covariance[0]) == (0.9, 3.0, -1.0)
     assert np.array_equal(imu(serialize_message(msg))[1], v)
+
+
+def test_codec_ignores_sentinels_left_in_uninitialised_bytes(monkeypatch):
+    """rclpy's buffer ends in padding that is not written (uninitialised memory): an earlier codec's sentinel
+    left there must not make the field search ambiguous (a plant once failed to start on exactly that)."""
+    from amb_ros import codec as codec_module
+
+    honest = codec_module.serialize_message
+
+    def stale(msg):  # rclpy's bytes, the unwritten tail holding a stale copy of the first sentinel
+        raw = bytearray(honest(msg))
+        used = np.zeros(len(raw), dtype=bool)
+        end = codec_module._mark_used(msg, used, codec_module.CDR_HEADER)
+        assert len(raw) - end >= 8  # this layout's serialization ends in at least 8 unwritten bytes
+        raw[end : end + 8] = struct.pack("<d", codec_module._sentinels(1)[0])
+        return bytes(raw)
+
+    monkeypatch.setattr(codec_module, "serialize_message", stale)
+    codec = m.joint_state_codec(CHANNELS, ("effort",))  # the plant's command layout: 8 bytes of tail padding
+    y = np.array([0.5, -0.25, 0.125, 2.0])
+    back = deserialize_message(codec.encode(7, y), JointState)
+    assert np.array_equal(back.effort, y) and list(back.name) == list(CHANNELS)
+    msg = JointState(name=list(CHANNELS), effort=y.tolist())
+    assert np.array_equal(codec.decode(honest(msg))[1], y)
 
 
 def test_slow_path_reorders_and_rejects():

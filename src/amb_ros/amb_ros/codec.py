@@ -64,6 +64,14 @@ class TemplateCodec:
         raw = serialize_message(template)
         if raw[:2] != b"\x00\x01":  # CDR little endian: the only byte order the offsets below are valid for
             raise RuntimeError("rmw serializes big-endian CDR; TemplateCodec supports little-endian only")
+        fixed = np.zeros(len(raw), dtype=bool)
+        end = _mark_used(template, fixed, CDR_HEADER)
+        fixed[:CDR_HEADER] = True
+        if end > len(raw):
+            raise RuntimeError(f"CDR layout walk of {msg_type.__name__} disagrees with rclpy's serialization")
+        # Padding and the buffer's tail are uninitialised memory, which may hold a sentinel of an earlier
+        # serialization (seen once: a plant that failed to start): search the bytes the layout uses only.
+        raw = np.where(fixed, np.frombuffer(raw, dtype=np.uint8), 0).astype(np.uint8).tobytes()
         offsets = []
         for value in sentinels:
             pattern = struct.pack("<d", value)
@@ -80,10 +88,7 @@ class TemplateCodec:
                 raise RuntimeError(f"cannot locate time field bytes of {msg_type.__name__} in its CDR layout")
             time_offsets.append(at)
         self.time_gather = (np.asarray(time_offsets, dtype=np.intp)[:, None] + np.arange(8)).reshape(-1)
-        fixed = np.zeros(len(raw), dtype=bool)
-        end = _mark_used(template, fixed, CDR_HEADER)  # padding bytes hold garbage: only used bytes are compared
-        fixed[:CDR_HEADER] = True
-        if end > len(raw) or not fixed[self.gather].all() or not fixed[self.time_gather].all():
+        if not fixed[self.gather].all() or not fixed[self.time_gather].all():
             raise RuntimeError(f"CDR layout walk of {msg_type.__name__} disagrees with rclpy's serialization")
         fixed[self.gather] = False
         fixed[self.time_gather] = False
