@@ -1,0 +1,81 @@
+"""CPU per lockstep step of every process of a run: `.venv/bin/python tools/rig_cpu.py [--bag] [--runs N]`.
+
+Runs ``amb-rig run --no-monitor --duration 4`` (optionally ``--bag``) and samples, every 50 ms, the CPU time of
+each thread of each node process from /proc; prints the steps/s and, per process and per thread group (the Python
+main thread, Fast DDS's shared-memory receive thread ``dds.shm``, its event thread ``dds.ev``), the CPU time
+divided by the run's steps, in us (start-up included).  Used for the recording-cost figures in docs/bags.md:
+where a recorder's CPU goes, and what a Fast DDS or scheduling change does to it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from amb_ros.env import child_env
+
+BIN = Path(sys.executable).parent
+PROCESSES = ("amb-plant", "amb-controller", "amb-base-motion", "amb-bag")
+TICK_S = 1.0 / os.sysconf("SC_CLK_TCK")
+
+
+def _thread_cpu(pid: str) -> dict[tuple[str, str], float]:
+    """{(tid, thread group): CPU seconds} of one process (groups: main, dds.shm, dds.ev, other)."""
+    out = {}
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        with open(f"/proc/{pid}/task/{tid}/comm") as f:
+            comm = f.read().strip()
+        with open(f"/proc/{pid}/task/{tid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        group = "main" if tid == pid else next((g for g in ("dds.shm", "dds.ev") if comm.startswith(g)), "other")
+        out[(tid, group)] = (int(fields[11]) + int(fields[12])) * TICK_S  # utime + stime
+    return out
+
+
+def one_run(bag: bool) -> tuple[float, dict[str, dict[str, float]]]:
+    """(steps/s, {process: {thread group: us of CPU per step}}) of one run."""
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [str(BIN / "amb-rig"), "run", "--json", "--no-monitor", "--duration", "4",
+               "--set", "controller.current_limit=1e9"] + (["--bag", str(Path(tmp) / "bag")] if bag else [])  # fmt: skip
+        rig = subprocess.Popen(cmd, env=child_env(), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        last: dict[tuple[str, str], dict] = collections.defaultdict(dict)  # threads that ended keep their last value
+        while rig.poll() is None:
+            for pid in filter(str.isdigit, os.listdir("/proc")):
+                try:
+                    with open(f"/proc/{pid}/cmdline") as f:
+                        args = f.read().split("\0")
+                    name = next((p for p in PROCESSES if any(a.endswith("/" + p) for a in args[:2])), None)
+                    if name is not None:
+                        last[(name, pid)].update(_thread_cpu(pid))
+                except OSError:  # a process or thread that has just ended
+                    continue
+            time.sleep(0.05)
+        summary = json.loads(rig.communicate()[0])
+    per_step: dict[str, dict[str, float]] = collections.defaultdict(lambda: collections.defaultdict(float))
+    for (name, _), threads in last.items():
+        for (_, group), seconds in threads.items():
+            per_step[name][group] += 1e6 * seconds / summary["steps"]
+    return summary["steps_per_s"], per_step
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--bag", action="store_true", help="record the run (amb-rig run --bag)")
+    parser.add_argument("--runs", type=int, default=1)
+    args = parser.parse_args()
+    for _ in range(args.runs):
+        rate, per_step = one_run(args.bag)
+        parts = [f"{name} {sum(g.values()):.0f} ({', '.join(f'{k} {v:.0f}' for k, v in sorted(g.items()))})"
+                 for name, g in per_step.items()]  # fmt: skip
+        print(f"{rate:,.0f} steps/s; us of CPU per step: " + "; ".join(parts), flush=True)
+
+
+if __name__ == "__main__":
+    main()
