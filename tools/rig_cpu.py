@@ -42,8 +42,9 @@ def _thread_cpu(pid: str) -> dict[tuple[str, str], float]:
 def one_run(bag: bool) -> tuple[float, dict[str, dict[str, float]]]:
     """(steps/s, {process: {thread group: us of CPU per step}}) of one run."""
     with tempfile.TemporaryDirectory() as tmp:
+        record = ["--bag", str(Path(tmp) / "bag")] if bag else []
         cmd = [str(BIN / "amb-rig"), "run", "--json", "--no-monitor", "--duration", "4",
-               "--set", "controller.current_limit=1e9"] + (["--bag", str(Path(tmp) / "bag")] if bag else [])  # fmt: skip
+               "--set", "controller.current_limit=1e9", *record]  # fmt: skip
         rig = subprocess.Popen(cmd, env=child_env(), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
         last: dict[tuple[str, str], dict] = collections.defaultdict(dict)  # threads that ended keep their last value
         while rig.poll() is None:
