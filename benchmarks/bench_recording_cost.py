@@ -56,8 +56,8 @@ def bare_reader() -> None:
     from sensor_msgs.msg import Imu, JointState
     from trajectory_msgs.msg import JointTrajectory
 
-    from amb_ros.node_base import idle_priority
     from amb_ros.qos import lockstep_qos
+    from amb_ros.scheduling import idle_priority
 
     types = {
         "/clock": Clock,

@@ -1,4 +1,4 @@
-"""Process-wide scheduling helpers (amb_ros.node_base): every thread is changed, not just the caller.
+"""Process-wide scheduling helpers (amb_ros.scheduling): every thread is changed, not just the caller.
 
 Linux niceness and scheduling policy are per thread; the DDS threads that receive each message exist before a
 node lowers its priority, so a helper that changed the calling thread only would leave them competing with the
@@ -12,9 +12,13 @@ import json
 import subprocess
 import sys
 
+import pytest
+
+from amb_ros.scheduling import consumer_priority
+
 SCRIPT = """
 import json, os, threading, time
-from amb_ros.node_base import idle_priority, lower_priority
+from amb_ros.scheduling import consumer_priority, idle_priority, lower_priority
 
 stop = threading.Event()
 threads = [threading.Thread(target=stop.wait) for _ in range(3)]
@@ -65,3 +69,12 @@ def test_idle_priority_covers_every_thread_and_later_ones():
     assert len(got["idle"]) >= 5 and all(got["idle"].values())  # four threads, then one started afterwards
     assert got["after"] == got["before"]  # SCHED_IDLE, not niceness
     assert got["text"] == f"SCHED_IDLE ({len(got['before'])} threads)"
+
+
+def test_consumer_priority_names_the_three_levels():
+    low = run("consumer_priority('low')")
+    assert low["after"] == {tid: min(19, nice + 5) for tid, nice in low["before"].items()}
+    normal = run("consumer_priority('normal')")
+    assert normal["text"] == "normal" and normal["after"] == normal["before"] and not any(normal["idle"].values())
+    with pytest.raises(ValueError, match="unknown priority 'high'"):
+        consumer_priority("high")  # refused before anything is changed

@@ -6,10 +6,10 @@ import argparse
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from amb_ros.scheduling import PRIORITIES
+
 from .errors import BagError
 from .writer import DEFAULT_CHUNK_SIZE
-
-PRIORITIES = ("idle", "low", "normal")  # --priority
 
 
 @dataclass

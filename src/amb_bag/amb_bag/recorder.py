@@ -41,7 +41,6 @@ from .record_options import PRIORITIES, RecordOptions, add_record_arguments, opt
 from .writer import BagWriter
 
 DRAIN_BATCH = 2000  # messages taken from one subscription before the others get a turn
-LOW_NICENESS = 5  # --priority low
 BUSY_DRAIN = 1000  # a drain this large means the recorder is behind: take the next batch without pausing
 WAIT_MAX_S = 0.05  # longest wait, so that signals, discovery and checkpoints are served promptly
 PREFIX = "amb-bag record:"
@@ -286,15 +285,12 @@ def record(opts: RecordOptions) -> dict:
     from rclpy.signals import SignalHandlerOptions
 
     from amb_ros.diagnostics import Diagnostics
-    from amb_ros.node_base import idle_priority, lower_priority
+    from amb_ros.scheduling import consumer_priority
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(NODE_NAME, enable_rosout=False, start_parameter_services=False)
     recorder = Recorder(node, opts, writer, diagnostics=Diagnostics(node, period_s=DIAGNOSTICS_PERIOD_S))
-    if opts.priority == "idle":  # after the node exists, so that its DDS threads are included
-        recorder.scheduling = idle_priority()
-    elif opts.priority == "low":
-        recorder.scheduling = lower_priority(LOW_NICENESS)
+    recorder.scheduling = consumer_priority(opts.priority)  # after the node exists: its DDS threads are included
 
     def request_stop(_signum, _frame):
         recorder.stop_requested = True

@@ -7,12 +7,11 @@ base motion and the offline simulation all agree on t_k bit for bit.
 
 from __future__ import annotations
 
-import os
-
 from rclpy.node import Node
 
 from .diagnostics import Counters, Diagnostics
 from .params import NodeParams, ParamSpec
+from .scheduling import set_realtime_priority
 
 MODES = ("lockstep", "realtime")
 
@@ -40,61 +39,6 @@ def common_specs() -> list[ParamSpec]:
         ),
         ParamSpec("diagnostics_period_s", 0.5, "wall time between /diagnostics messages", "s", lo=0.01, hi=60.0),
     ]
-
-
-def _thread_ids() -> list[int]:
-    try:
-        return [int(t) for t in os.listdir("/proc/self/task")]
-    except OSError:
-        return [0]
-
-
-def lower_priority(increment: int) -> str:
-    """Add ``increment`` to the niceness of every thread of this process.
-
-    ``os.nice`` changes the calling thread only (Linux niceness is per thread), and the DDS threads that receive
-    every message were created before; a consumer beside the lockstep loop (monitor, recorder) must yield the CPU
-    with all of them, or their wake-ups still compete with the loop.
-    """
-    tids = _thread_ids()
-    for tid in tids:
-        try:
-            os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + increment))
-        except OSError:  # a thread that has just ended
-            continue
-    return f"nice +{increment} ({len(tids)} threads)"
-
-
-def idle_priority() -> str:
-    """SCHED_IDLE for every thread of this process: it runs only on CPU time that no other thread wants.
-
-    For a consumer that must not slow the lockstep loop (the recorder): besides yielding the CPU it makes its
-    DDS receive threads wake later, so one wake-up takes several samples.  Threads created later inherit it.
-    """
-    tids = _thread_ids()
-    for tid in tids:
-        try:
-            os.sched_setscheduler(tid, os.SCHED_IDLE, os.sched_param(0))
-        except OSError:  # a thread that has just ended
-            continue
-    return f"SCHED_IDLE ({len(tids)} threads)"
-
-
-def set_realtime_priority(priority: int) -> str:
-    """SCHED_FIFO for every thread of this process: the node's loop and the DDS threads that deliver to it.
-
-    A HIL loop needs it on a loaded machine: a timed wait is ~100 us late at the median and much more at the
-    99th percentile under load, and a DDS receive thread at normal priority adds its own scheduling delay.
-    The loops block between samples, so they do not starve the machine.  Returns a description for
-    diagnostics; not permitted -> normal scheduling.
-    """
-    tids = _thread_ids()
-    try:
-        for tid in tids:
-            os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
-    except (PermissionError, OSError) as exc:
-        return f"normal (SCHED_FIFO {priority} refused: {exc.strerror})"
-    return f"SCHED_FIFO {priority} ({len(tids)} threads)"
 
 
 class RigNode(Node):

@@ -39,10 +39,11 @@ from amb_dynamics.errors import InputError
 from amb_dynamics.estimate import METHODS
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.loop import Waiter
-from amb_ros.node_base import RigNode, lower_priority
+from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos, latched_qos, reliable_qos
 from amb_ros.runtime import run_node
+from amb_ros.scheduling import PRIORITIES, consumer_priority
 
 from .messages import JointStateInput, StateBlockInput, multipliers_message
 from .pipeline import FORCING_CHOICES, MonitorPipeline, MonitorSettings
@@ -79,7 +80,8 @@ def specs() -> list[ParamSpec]:
         ParamSpec("static_period_s", 0.1, "period used for a static base", "s", 1e-6, 1e6),
         ParamSpec("batch_s", 0.02, "sleep between drains: fewer wake-ups, less CPU taken from the loop (the reliable "
                   "1000-deep history holds the samples meanwhile)", "s", 0.0, 1.0),
-        ParamSpec("niceness", 5, "added to the process niceness: the loop's nodes get the CPU first", "", 0, 19),
+        ParamSpec("priority", "idle", "scheduling of every thread, DDS's included: idle (SCHED_IDLE: only CPU time "
+                  "the loop leaves; a refit never preempts it), low (niceness +5) or normal", choices=PRIORITIES),
     ]  # fmt: skip
 
 
@@ -186,8 +188,7 @@ class MonitorNode(RigNode):
 
     # -- loop -----------------------------------------------------------------------------------------
     def run(self) -> int:
-        if self.p["niceness"]:
-            self.scheduling = lower_priority(self.p["niceness"])
+        self.scheduling = consumer_priority(self.p["priority"])
         batch = self.p["batch_s"]
         while not self.stop.is_set:
             self.waiter.wait(1.0)
