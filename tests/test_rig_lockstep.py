@@ -103,7 +103,7 @@ def lockstep_run(tmp_path, venv_bin, extra=()):
         )
     finally:
         rec.close()
-    assert code == 0, text[-2000:]
+    assert code == 0, (summary or {}).get("errors") or text[-2000:]
     disp = {stamp(m): np.array(m.position) for m in rec.messages["/amb/displacement"]}
     state = {}  # blocks of consecutive samples: point stamp = header stamp + time_from_start
     for m in rec.messages["/amb_plant/state"]:
