@@ -68,7 +68,8 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
     if args.initial_displacement:
         per["plant"]["initial_displacement"] = float(args.initial_displacement)
     per["plant"]["start_timeout_s"] = float(args.start_timeout)
-    per["plant"]["min_diagnostics_readers"] = 1  # amb-rig's collector: it must hear the plant's final report
+    for name in NODES:  # amb-rig's collector must hear every final report (the plant's also gates its start)
+        per[name]["min_diagnostics_readers"] = 1
     if args.rt_priority:  # the loop's nodes only: the monitor and the recorder are niced consumers beside it
         for name in ("base_motion", "controller", "plant"):
             per[name]["rt_priority"] = int(args.rt_priority)

@@ -73,8 +73,6 @@ def specs() -> list[ParamSpec]:
         ParamSpec("min_subscribers", 1, "readers of /amb/displacement required before starting", "", 1, 100),
         ParamSpec("min_state_subscribers", 0, "readers of /amb_plant/state required before starting (amb-rig: "
                   "recorder and monitor)", "", 0, 100),
-        ParamSpec("min_diagnostics_readers", 0, "readers of /diagnostics required before starting (amb-rig: 1)",
-                  "", 0, 100),
         ParamSpec("initial_displacement", 0.0, "initial lateral (v) displacement of the disk node", "m", -1.0, 1.0),
         ParamSpec("max_displacement_ratio", 100.0, "stop the run when |y| exceeds this many air gaps (the linear "
                   "model means nothing there)", "", 1.0, 1e12),

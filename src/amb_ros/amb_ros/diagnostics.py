@@ -88,8 +88,8 @@ class Timings:
 class Diagnostics:
     """Periodic and final DiagnosticStatus of one node."""
 
-    def __init__(self, node, period_s: float = 0.5):
-        self.node = node
+    def __init__(self, node, period_s: float = 0.5, min_readers: int = 0):
+        self.node, self.min_readers = node, min_readers
         self.pub = node.create_publisher(DiagnosticArray, DIAGNOSTICS, diagnostics_qos())
         self.period_ns = int(period_s * 1e9)
         self._next_ns = time.monotonic_ns()
@@ -111,6 +111,13 @@ class Diagnostics:
         self._next_ns = time.monotonic_ns() + self.period_ns
 
     def publish_final(self, level: bytes, message: str, values: dict[str, str], timeout_s: float = 2.0) -> None:
-        """Publish the last status and wait (bounded) until every matched reader has it."""
+        """Publish the last status and wait (bounded by ``timeout_s`` in all) until every matched reader has it.
+
+        /diagnostics is volatile: a reader that this publisher has not matched yet would never get the report, and
+        a short run can end before discovery has completed (seen: amb-rig's collector missed base_motion's and the
+        controller's every report).  So first wait for ``min_readers`` matched readers."""
+        deadline = time.monotonic() + timeout_s
+        while self.pub.get_subscription_count() < self.min_readers and time.monotonic() < deadline:
+            time.sleep(0.01)
         self.publish(level, message, values, final=True)
-        self.pub.wait_for_all_acked(Duration(seconds=timeout_s))
+        self.pub.wait_for_all_acked(Duration(seconds=max(0.1, deadline - time.monotonic())))

@@ -38,6 +38,15 @@ def common_specs() -> list[ParamSpec]:
             "rt_priority", 0, "SCHED_FIFO priority of every thread of the node (0 = normal scheduling)", "", 0, 99
         ),
         ParamSpec("diagnostics_period_s", 0.5, "wall time between /diagnostics messages", "s", lo=0.01, hi=60.0),
+        ParamSpec(
+            "min_diagnostics_readers",
+            0,
+            "readers of /diagnostics that the final report waits for (at most "
+            "2 s; the plant also before starting; amb-rig: 1, its collector)",
+            "",
+            0,
+            100,
+        ),
     ]
 
 
@@ -55,7 +64,7 @@ class RigNode(Node):
         self.Ts_ns = sample_period_ns(self.p["rate_hz"])
         self.Ts = self.Ts_ns / 1e9
         self.counters = Counters()
-        self.diag = Diagnostics(self, self.p["diagnostics_period_s"])
+        self.diag = Diagnostics(self, self.p["diagnostics_period_s"], self.p["min_diagnostics_readers"])
         self.scheduling = "normal"
         if self.p["rt_priority"] > 0:
             self.scheduling = set_realtime_priority(self.p["rt_priority"])
