@@ -1,4 +1,4 @@
-"""The rig's Fast DDS profile (src/amb_ros/amb_ros/fastdds_profile.xml): opt-in, and in effect when used.
+"""The rig's Fast DDS profile (src/amb_ros/amb_ros/fastdds_profile.xml): set for every process, and in effect.
 
 Under Fast DDS's defaults a reliable writer appends a HEARTBEAT to each sample it sends, and each reliable reader
 answers from its event thread (an ACKNACK, which wakes the writer in turn).  The profile turns the piggybacked
@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from amb_ros.env import child_env, ensure_localhost_dds
-from amb_ros.fastdds import OPT_IN, PROFILE_FILE, PROFILE_VARS
+from amb_ros.fastdds import PROFILE_FILE, PROFILE_VARS, SWITCH
 
 SAMPLES = 2000
 
@@ -76,14 +76,14 @@ def event_thread_wakeups_per_sample(env: dict) -> float:
     return got["wakeups"] / SAMPLES
 
 
-def test_the_rig_profile_is_opt_in_and_never_replaces_the_users(tmp_path):
-    assert not any(v in ensure_localhost_dds({}) for v in PROFILE_VARS)  # off by default (module docstring)
-    env = ensure_localhost_dds({OPT_IN: "1"})
+def test_every_process_gets_the_rig_profile_unless_switched_off_or_the_user_has_one(tmp_path):
+    env = ensure_localhost_dds({})
     assert env["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(PROFILE_FILE) and PROFILE_FILE.is_file()
-    assert child_env({OPT_IN: "1"})["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(PROFILE_FILE)
+    assert child_env({})["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(PROFILE_FILE)
+    assert not any(v in ensure_localhost_dds({SWITCH: "0"}) for v in PROFILE_VARS)
     own = tmp_path / "mine.xml"
     for var in PROFILE_VARS:
-        env = ensure_localhost_dds({var: str(own), OPT_IN: "1"})
+        env = ensure_localhost_dds({var: str(own)})
         assert env[var] == str(own) and {v for v in PROFILE_VARS if v in env} == {var}
 
 

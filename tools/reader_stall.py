@@ -3,7 +3,7 @@
 Runs ``amb-rig run --no-monitor`` (8 s simulated) beside benchmarks/bench_recording_cost.py's bare raw reader of
 every rig topic, SIGSTOPs the reader for the given seconds in mid-run, SIGCONTs it, and prints whether the run
 finished and the plant's longest command wait (docs/nodes.md, Faults: 1.5 s stopped gave 1.50 s in 1 of 4 runs
-under Fast DDS's default profile, 6-22 ms in 8 of 8 runs with the opt-in rig profile).
+under Fast DDS's default profile, 6-22 ms in 8 of 8 runs with the rig's profile).
 """
 
 from __future__ import annotations

@@ -4,10 +4,9 @@ Fast DDS reads its default profiles from the file named by ``FASTRTPS_DEFAULT_PR
 participant is created, so setting it before ``rclpy.init`` (or in a child's environment) is enough.  A profile
 file of the user's own is left alone.  Other RMW implementations ignore the variable.
 
-Opt-in (``AMB_RIG_FASTDDS_PROFILE=1``).  With it, short lockstep runs got fast enough to end before amb-rig's
-collector had discovered base_motion and the controller, whose reports were then lost (2 of 6 runs of
-tests/test_rig_lockstep.py); every final report now waits for the collector (``min_diagnostics_readers``), after
-which 6 of 6 passed with it.  It becomes the default once a full CI has run with it on.
+On by default; ``AMB_RIG_FASTDDS_PROFILE=0`` turns it off.  With it, short lockstep runs got fast enough to end
+before amb-rig's collector had discovered base_motion and the controller, whose reports were then lost; every
+final report now waits for the collector (``min_diagnostics_readers``), and a full CI passed with the profile on.
 """
 
 from __future__ import annotations
@@ -16,12 +15,12 @@ from pathlib import Path
 
 PROFILE_FILE = Path(__file__).with_name("fastdds_profile.xml")
 PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
-OPT_IN = "AMB_RIG_FASTDDS_PROFILE"
+SWITCH = "AMB_RIG_FASTDDS_PROFILE"  # "0": Fast DDS's own defaults
 
 
 def use_rig_profile(env: dict) -> dict:
-    """With ``AMB_RIG_FASTDDS_PROFILE=1`` in ``env``, point Fast DDS at the rig's profile unless a profile file is
-    already given; returns ``env``."""
-    if env.get(OPT_IN) == "1" and not any(env.get(var) for var in PROFILE_VARS):
+    """Point Fast DDS at the rig's profile in ``env`` unless a profile file is already given or
+    ``AMB_RIG_FASTDDS_PROFILE=0``; returns ``env``."""
+    if env.get(SWITCH) != "0" and not any(env.get(var) for var in PROFILE_VARS):
         env[PROFILE_VARS[0]] = str(PROFILE_FILE)
     return env
