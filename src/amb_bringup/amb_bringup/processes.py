@@ -70,7 +70,7 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
     per["plant"]["start_timeout_s"] = float(args.start_timeout)
     for name in NODES:  # amb-rig's collector must hear every final report (the plant's also gates its start)
         per[name]["min_diagnostics_readers"] = 1
-    if args.rt_priority:  # the loop's nodes only: the monitor and the recorder are niced consumers beside it
+    if args.rt_priority:  # the loop's nodes only: the monitor and the recorder run under SCHED_IDLE beside it
         for name in ("base_motion", "controller", "plant"):
             per[name]["rt_priority"] = int(args.rt_priority)
     for item in args.param:
