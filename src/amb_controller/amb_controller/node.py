@@ -31,6 +31,7 @@ from amb_dynamics.amb import DiscretePID, DiscretePIDCoefficients
 from amb_dynamics.errors import InputError
 from amb_dynamics.structure import AMBGains, channel_names
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
+from amb_ros.live_params import LiveParams, param_at_spec
 from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
@@ -44,9 +45,12 @@ from .realtime import on_realtime_sample, run_sample_triggered, run_timer_trigge
 def specs() -> list[ParamSpec]:
     c = "controller."
     return [
-        ParamSpec("proportional_gain", None, "kp", "A/m", 0.0, 1e12, config_key=c + "proportional_gain"),
-        ParamSpec("derivative_gain", None, "kd", "A s/m", 0.0, 1e12, config_key=c + "derivative_gain"),
-        ParamSpec("integral_gain", None, "kI", "A/(m s)", 0.0, 1e15, config_key=c + "integral_gain"),
+        ParamSpec("proportional_gain", None, "kp", "A/m", 0.0, 1e12, config_key=c + "proportional_gain",
+                  runtime=True),
+        ParamSpec("derivative_gain", None, "kd", "A s/m", 0.0, 1e12, config_key=c + "derivative_gain",
+                  runtime=True),
+        ParamSpec("integral_gain", None, "kI", "A/(m s)", 0.0, 1e15, config_key=c + "integral_gain",
+                  runtime=True),
         ParamSpec("derivative_filter_hz", None, "derivative filter corner; 0 = backward difference", "Hz", 0.0, 1e9,
                   config_key=c + "derivative_filter_hz", none_value=0.0),
         ParamSpec("current_limit", None, "output saturation; the integrator is clamped to it", "A", 0.0, 1e12,
@@ -58,16 +62,19 @@ def specs() -> list[ParamSpec]:
                   choices=("sample", "timer")),
         ParamSpec("sensor_timeout_s", 0.1, "no new sample for this long: zero current and ERROR (realtime)", "s",
                   1e-4, 3600.0),
-        ParamSpec("excitation_kind", "none", "current injected for identification", choices=KINDS),
-        ParamSpec("excitation_amplitude", 0.0, "sine amplitude or noise standard deviation", "A", 0.0, 1e6),
-        ParamSpec("excitation_frequency_hz", 10.0, "sine frequency", "Hz", 0.0, 1e6),
+        ParamSpec("excitation_kind", "none", "current injected for identification", choices=KINDS, runtime=True),
+        ParamSpec("excitation_amplitude", 0.0, "sine amplitude or noise standard deviation", "A", 0.0, 1e6,
+                  runtime=True),
+        ParamSpec("excitation_frequency_hz", 10.0, "sine frequency", "Hz", 0.0, 1e6, runtime=True),
         ParamSpec("excitation_channels", [0, 1, 2, 3], "channel indices that receive the excitation"),
         ParamSpec("excitation_seed", 0, "seed of the noise excitation", "", 0, 2**31 - 1),
         ParamSpec("safe_gains_on_unstable", False, "switch to the safe gain set when the stability monitor's latched "
-                  "/stability/unstable becomes True (stays switched; off by default)"),
-        ParamSpec("safe_proportional_gain", 0.0, "kp of the safe gain set; 0 = the nominal kp", "A/m", 0.0, 1e12),
+                  "/stability/unstable becomes True (stays switched; off by default)", runtime=True),
+        ParamSpec("safe_proportional_gain", 0.0, "kp of the safe gain set; 0 = the nominal kp", "A/m", 0.0, 1e12,
+                  runtime=True),
         ParamSpec("safe_derivative_gain", 0.0, "kd of the safe gain set; 0 = twice the nominal kd (more damping)",
-                  "A s/m", 0.0, 1e12),
+                  "A s/m", 0.0, 1e12, runtime=True),
+        param_at_spec(),
     ]  # fmt: skip
 
 
@@ -81,8 +88,10 @@ class ControllerNode(RigNode):
             raise InputError(
                 f"parameter 'excitation_channels' = {chans}: indices must be in 0..{len(self.channels) - 1}"
             )
-        coeffs = DiscretePIDCoefficients.from_gains(AMBGains.from_config(cfg), self.Ts)
-        self.pid = DiscretePID(coeffs, len(self.channels), p["current_limit"], cfg.controller.delay_samples)
+        self.gain_set, self.safe_switch_t, self.unstable_sub = "nominal", None, None
+        self.pid = DiscretePID(
+            self.coefficients("nominal"), len(self.channels), p["current_limit"], cfg.controller.delay_samples
+        )
         self.excitation = Excitation(p["excitation_kind"], p["excitation_amplitude"], p["excitation_frequency_hz"],
                                      chans, len(self.channels), p["excitation_seed"])  # fmt: skip
         qos = data_qos(self.mode, p["qos_depth"])
@@ -90,16 +99,10 @@ class ControllerNode(RigNode):
         self.codec = m.joint_state_codec(self.channels, ("effort",))
         self.decoder = m.joint_state_decoder(self.channels, ("position",))
         self.sub = self.create_subscription(JointState, m.DISPLACEMENT, self.on_sample, qos, raw=True)
-        self.gain_set, self.safe_switch_t = "nominal", None
         if p["safe_gains_on_unstable"]:
-            gains = AMBGains.from_config(cfg)
-            safe = replace(
-                gains, kp=p["safe_proportional_gain"] or gains.kp, kd=p["safe_derivative_gain"] or 2 * gains.kd
-            )
-            self.safe_coeffs = DiscretePIDCoefficients.from_gains(safe, self.Ts)
-            # served by Waiter.serve() (every ~0.1 s wall): the switch is a safety action, not part of the lockstep
-            self.unstable_sub = self.create_subscription(Bool, m.UNSTABLE, self.on_unstable, latched_qos())
+            self.listen_unstable()
         self.waiter = Waiter(self, [self.sub])
+        self.live = LiveParams(self, [s for s in specs() if s.runtime], self.retune)
         self.answered = self.saturated = self.lost = self.restarts = self.repeated = 0
         self.sensor_losses = self.safe_ticks = self.nonfinite = 0
         self.max_current = 0.0
@@ -116,10 +119,37 @@ class ControllerNode(RigNode):
         self.last_stamp: int | None = None
         self.t_wall0 = time.monotonic()
 
+    def coefficients(self, gain_set: str) -> DiscretePIDCoefficients:
+        """PID coefficients of the nominal or the safe gain set, from the current parameter values."""
+        p = self.p
+        gains = replace(AMBGains.from_config(self.cfg), kp=p["proportional_gain"], kd=p["derivative_gain"],
+                        kI=p["integral_gain"])  # fmt: skip
+        if gain_set == "safe":
+            gains = replace(gains, kp=p["safe_proportional_gain"] or gains.kp,
+                            kd=p["safe_derivative_gain"] or 2 * gains.kd)  # fmt: skip
+        return DiscretePIDCoefficients.from_gains(gains, self.Ts)
+
+    def listen_unstable(self) -> None:
+        # served by Waiter.serve() (every ~0.1 s wall): the switch is a safety action, not part of the lockstep
+        if self.unstable_sub is None:
+            self.unstable_sub = self.create_subscription(Bool, m.UNSTABLE, self.on_unstable, latched_qos())
+
+    def retune(self, changed: dict) -> None:
+        """Runtime parameter changes, applied before the sample they take effect at (amb_ros.live_params)."""
+        ex, p = self.excitation, self.p
+        ex.kind, ex.amplitude, ex.frequency_hz = (
+            p["excitation_kind"],
+            p["excitation_amplitude"],
+            p["excitation_frequency_hz"],
+        )
+        if p["safe_gains_on_unstable"]:
+            self.listen_unstable()
+        self.pid.c = self.coefficients(self.gain_set)  # the PID keeps its integrator and filter state
+
     def on_unstable(self, msg: Bool) -> None:
         """The monitor's verdict: switch once to the safe gains (the PID keeps its integrator and filter state)."""
-        if msg.data and self.gain_set == "nominal":
-            self.pid.c = self.safe_coeffs
+        if msg.data and self.gain_set == "nominal" and self.p["safe_gains_on_unstable"]:
+            self.pid.c = self.coefficients("safe")
             self.gain_set = "safe"
             self.safe_switch_t = self.last_k * self.Ts if self.last_k >= 0 else 0.0
             self.get_logger().warning(
@@ -157,6 +187,8 @@ class ControllerNode(RigNode):
 
     def answer(self, t_ns: int, y: np.ndarray, t: float) -> None:
         t0 = time.perf_counter()
+        if self.live.pending or self.live.schedule:
+            self.live.at_sample(t_ns)
         with np.errstate(over="ignore", invalid="ignore"):
             u = self.pid.step(y)
         if self.excitation.active:
@@ -237,6 +269,7 @@ class ControllerNode(RigNode):
                 "wall time (s)": f"{time.monotonic() - self.t_wall0:.3f}",
             }
         )
+        out.update(self.live.values())
         out.update(self.compute.summary("compute"))
         if self.mode == "realtime":
             out.update({"trigger": self.p["trigger"], "ticks": str(self.ticks), "missed deadlines": str(self.missed),

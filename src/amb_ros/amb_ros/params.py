@@ -40,12 +40,13 @@ class ParamSpec:
     choices: tuple[str, ...] | None = None
     config_key: str | None = None
     none_value: Any = None  # parameter value that stands for a null config value
+    runtime: bool = False  # may change while the node runs (amb_ros.live_params); read-only otherwise
 
     def descriptor(self, value) -> ParameterDescriptor:
         text = self.description + (f" ({self.unit})" if self.unit else "")
         if self.choices:
             text += f"; one of: {', '.join(self.choices)}"
-        d = ParameterDescriptor(description=text, read_only=True)
+        d = ParameterDescriptor(description=text, read_only=not self.runtime)
         if isinstance(value, bool) or (self.lo is None and self.hi is None):
             return d
         if isinstance(value, float):

@@ -38,6 +38,7 @@ import amb_ros.messages as m
 from amb_dynamics.errors import InputError
 from amb_dynamics.estimate import METHODS
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
+from amb_ros.live_params import LiveParams, param_at_spec
 from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
@@ -71,8 +72,10 @@ def specs() -> list[ParamSpec]:
         ParamSpec("max_rank", 12, "largest number of modes identified", "", 1, 1000),
         ParamSpec("noise_std", -1.0, "measurement noise std of every channel; negative = estimate from the data",
                   "signal units", -1.0, 1e9),
-        ParamSpec("margin", 0.02, "flag when rho >= 1 + margin (and rho - z std > 1)", "", 0.0, 10.0),
-        ParamSpec("hysteresis", 0.02, "clear when rho + z std < 1 + margin - hysteresis", "", 0.0, 10.0),
+        ParamSpec("margin", 0.02, "flag when rho >= 1 + margin (and rho - z std > 1)", "", 0.0, 10.0,
+                  runtime=True),
+        ParamSpec("hysteresis", 0.02, "clear when rho + z std < 1 + margin - hysteresis", "", 0.0, 10.0,
+                  runtime=True),
         ParamSpec("confidence_z", 3.0, "standard errors required on the right side of 1", "", 0.0, 100.0),
         ParamSpec("confirm", 2, "consecutive refits needed to raise or clear the flag", "", 1, 1000),
         ParamSpec("publish_count", 8, "multipliers published per refit (largest first)", "", 0, 10000),
@@ -82,6 +85,7 @@ def specs() -> list[ParamSpec]:
                   "1000-deep history holds the samples meanwhile)", "s", 0.0, 1.0),
         ParamSpec("priority", "idle", "scheduling of every thread, DDS's included: idle (SCHED_IDLE: only CPU time "
                   "the loop leaves; a refit never preempts it), low (niceness +5) or normal", choices=PRIORITIES),
+        param_at_spec(),
     ]  # fmt: skip
 
 
@@ -131,6 +135,11 @@ class MonitorNode(RigNode):
         self.lost = 0
         self.last_t_ns: int | None = None
         self.error = ""
+        self.live = LiveParams(self, [s for s in specs() if s.runtime], self.retune)
+
+    def retune(self, changed: dict) -> None:
+        """Runtime margin/hysteresis (amb_ros.live_params): from the sample at which the change applies."""
+        self.pipeline.set_margins(self.p["margin"], self.p["hysteresis"])
 
     # -- receive ------------------------------------------------------------------------------------
     def on_imu(self, raw: bytes) -> None:
@@ -149,6 +158,8 @@ class MonitorNode(RigNode):
             self.pipeline.scale_groups = self.data_in.scale_groups()
         for t_ns, values in zip(stamps.tolist(), rows, strict=True):
             t0 = time.perf_counter()
+            if self.live.pending or self.live.schedule:
+                self.live.at_sample(t_ns)
             Ts = self.pipeline.sample_time
             if Ts is not None and self.last_t_ns is not None and t_ns > self.last_t_ns:
                 self.lost += max(0, round((t_ns - self.last_t_ns) * 1e-9 / Ts) - 1)
@@ -249,6 +260,7 @@ class MonitorNode(RigNode):
                 if f.excited:
                     out["rho"] = f"{f.rho:.6f}"
                     out["rho std"] = f"{f.rho_std:.3g}"
+        out.update(self.live.values())
         out.update(self.cost.summary("cost per sample"))
         return out
 

@@ -9,7 +9,7 @@ stamps), never on wall time, so a replay gives the same output as the live run.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -189,6 +189,12 @@ class MonitorPipeline:
         if est.unstable and self.flag_time is None:
             self.flag_time = est.time
         return [est]
+
+    def set_margins(self, margin: float, hysteresis: float) -> None:
+        """Change the flag's margin and hysteresis while running; the latched flag and its counts are kept."""
+        self.s = replace(self.s, margin=margin, hysteresis=hysteresis)
+        if self.estimator is not None:
+            self.estimator.flag.policy = replace(self.estimator.flag.policy, margin=margin, hysteresis=hysteresis)
 
     @property
     def forcing(self) -> str:
