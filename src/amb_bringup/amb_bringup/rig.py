@@ -28,6 +28,7 @@ from amb_dynamics.config import load_config
 from amb_dynamics.errors import AmbError
 from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds, hold_run_lock
 
+from . import paramfile
 from .domain import Watch, describe, foreign_publishers, topics_of
 from .processes import all_specs
 from .summary import build_summary, format_summary
@@ -77,6 +78,7 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--log-dir", help="folder for the node logs and params file (default: a new temp folder)")
     r.add_argument("--start-timeout", type=float, default=60.0, help="bound on start-up and connection (s)")
     r.add_argument("--timeout", type=float, help="bound on the whole run (wall s; default from the duration)")
+    paramfile.add_arguments(r)
     return ap
 
 
@@ -94,6 +96,14 @@ class Interrupted:
 
 def main(argv: list[str] | None = None) -> None:
     args = parser().parse_args(argv)
+    try:  # every node's parameters, before anything starts (amb_bringup.paramfile)
+        params = paramfile.prepare(args)
+    except AmbError as exc:
+        print(f"amb-rig: {exc}", file=sys.stderr)
+        sys.exit(EXIT_USAGE)
+    if args.print_params:
+        paramfile.print_params(args, *params)
+        sys.exit(0)
     try:
         ensure_localhost_dds()
         cfg = load_config(args.config, args.set)  # validate before starting anything
