@@ -1,6 +1,11 @@
+import sys
+
 from setuptools import find_packages, setup
 
 PACKAGE = "amb_bag"
+# the short ``ros2 run`` names go to lib/<pkg> (setup.cfg install_scripts), where ros2 run looks; they are made only
+# by colcon's ``setup.py install``/``develop``, never by pip, so that only amb-* commands land on the venv's PATH
+ROS_RUN = ["record = amb_bag.recorder:main"] if {"install", "develop"} & set(sys.argv) else []
 
 setup(
     name=PACKAGE,
@@ -15,6 +20,6 @@ setup(
     description="MCAP recorder (rosbag2 layout), player, info, check and plot.",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": ["record = amb_bag.recorder:main", "amb-bag = amb_bag.cli:main"],
+        "console_scripts": ["amb-bag = amb_bag.cli:main", *ROS_RUN],
     },
 )

@@ -1,6 +1,11 @@
+import sys
+
 from setuptools import find_packages, setup
 
 PACKAGE = "amb_controller"
+# the short ``ros2 run`` names go to lib/<pkg> (setup.cfg install_scripts), where ros2 run looks; they are made only
+# by colcon's ``setup.py install``/``develop``, never by pip, so that only amb-* commands land on the venv's PATH
+ROS_RUN = ["controller = amb_controller.node:main"] if {"install", "develop"} & set(sys.argv) else []
 
 setup(
     name=PACKAGE,
@@ -15,9 +20,6 @@ setup(
     description="Node: fixed-rate digital PID per AMB axis.",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [
-            "controller = amb_controller.node:main",
-            "amb-controller = amb_controller.node:main",
-        ],
+        "console_scripts": ["amb-controller = amb_controller.node:main", *ROS_RUN],
     },
 )

@@ -1,6 +1,11 @@
+import sys
+
 from setuptools import find_packages, setup
 
 PACKAGE = "amb_plant"
+# the short ``ros2 run`` names go to lib/<pkg> (setup.cfg install_scripts), where ros2 run looks; they are made only
+# by colcon's ``setup.py install``/``develop``, never by pip, so that only amb-* commands land on the venv's PATH
+ROS_RUN = ["plant = amb_plant.node:main"] if {"install", "develop"} & set(sys.argv) else []
 
 setup(
     name=PACKAGE,
@@ -15,6 +20,6 @@ setup(
     description="Node: flexible rotor on AMBs (sampled-data propagator of amb_dynamics); /clock master in lockstep.",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": ["plant = amb_plant.node:main", "amb-plant = amb_plant.node:main"],
+        "console_scripts": ["amb-plant = amb_plant.node:main", *ROS_RUN],
     },
 )

@@ -1,6 +1,11 @@
+import sys
+
 from setuptools import find_packages, setup
 
 PACKAGE = "base_motion"
+# the short ``ros2 run`` names go to lib/<pkg> (setup.cfg install_scripts), where ros2 run looks; they are made only
+# by colcon's ``setup.py install``/``develop``, never by pip, so that only amb-* commands land on the venv's PATH
+ROS_RUN = ["base_motion = base_motion.node:main"] if {"install", "develop"} & set(sys.argv) else []
 
 setup(
     name=PACKAGE,
@@ -15,9 +20,6 @@ setup(
     description="Node: publishes the moving base's attitude, angular velocity and acceleration.",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [
-            "base_motion = base_motion.node:main",
-            "amb-base-motion = base_motion.node:main",
-        ],
+        "console_scripts": ["amb-base-motion = base_motion.node:main", *ROS_RUN],
     },
 )

@@ -1,6 +1,11 @@
+import sys
+
 from setuptools import find_packages, setup
 
 PACKAGE = "stability_monitor"
+# the short ``ros2 run`` names go to lib/<pkg> (setup.cfg install_scripts), where ros2 run looks; they are made only
+# by colcon's ``setup.py install``/``develop``, never by pip, so that only amb-* commands land on the venv's PATH
+ROS_RUN = ["monitor = stability_monitor.node:main"] if {"install", "develop"} & set(sys.argv) else []
 
 setup(
     name=PACKAGE,
@@ -15,9 +20,6 @@ setup(
     description="Node and offline CLI: online Floquet multipliers and instability flag.",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [
-            "monitor = stability_monitor.node:main",
-            "amb-monitor = stability_monitor.cli:main",
-        ],
+        "console_scripts": ["amb-monitor = stability_monitor.cli:main", *ROS_RUN],
     },
 )
