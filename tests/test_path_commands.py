@@ -13,7 +13,7 @@ SHORT = ("controller", "plant", "monitor", "record", "base_motion")
 def test_only_amb_commands_on_path(venv_bin):
     scripts = {ep.name for d in DISTS for ep in distribution(d).entry_points if ep.group == "console_scripts"}
     assert scripts == {"amb-dynamics", "amb-base-motion", "amb-plant", "amb-controller", "amb-monitor", "amb-bag",
-                       "amb-rig"}  # fmt: skip
+                       "amb-rig", "amb-live"}  # fmt: skip
     installed_in_bin = {
         Path(str(f)).name for d in DISTS for f in (distribution(d).files or []) if Path(str(f)).parent.name == "bin"
     }

@@ -18,6 +18,6 @@ setup(
     description="amb-rig: starts the nodes as separate processes (no launch system) and summarises a run.",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": ["amb-rig = amb_bringup.rig:main"],
+        "console_scripts": ["amb-rig = amb_bringup.rig:main", "amb-live = amb_bringup.live:main"],
     },
 )

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import yaml
 
+from .live import live_process
 from .supervisor import ProcessSpec
 
 NODES = {  # name in amb-rig -> (ROS package, ros2 run executable, venv console script, ROS node name)
@@ -140,7 +141,7 @@ def monitor_process(args, run_dir: Path) -> ProcessSpec | None:
     return ProcessSpec("monitor", cmd, node=node, required=True, stop_tier=1, verdict_only=True)
 
 
-EXTRA_PROCESSES: list[Callable[..., ProcessSpec | None]] = [bag_process, monitor_process]
+EXTRA_PROCESSES: list[Callable[..., ProcessSpec | None]] = [bag_process, monitor_process, live_process]
 
 
 def all_specs(args, run_dir: Path) -> list[ProcessSpec]:

@@ -28,7 +28,7 @@ from amb_dynamics.config import load_config
 from amb_dynamics.errors import AmbError
 from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds, hold_run_lock
 
-from . import paramfile
+from . import live, paramfile
 from .domain import Watch, describe, foreign_publishers, topics_of
 from .processes import all_specs
 from .summary import build_summary, format_summary
@@ -79,6 +79,8 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--start-timeout", type=float, default=60.0, help="bound on start-up and connection (s)")
     r.add_argument("--timeout", type=float, help="bound on the whole run (wall s; default from the duration)")
     paramfile.add_arguments(r)
+    r.add_argument("--live", action="store_true", help="serve the run to Foxglove (amb-live; docs/live-view.md)")
+    live.add_arguments(r, prefix="live-")
     return ap
 
 
