@@ -204,3 +204,24 @@ def test_param_at_switches_at_the_first_sample_after_T_and_is_in_the_bag(tmp_pat
         assert np.abs(y_dds - offline_switched(steps, other, new_kp, disk_v)).max() > 1e-6 * scale
     assert changes and changes[0] == ctl["parameter change 1"]
     assert ("/amb_controller", "proportional_gain", new_kp) in events
+
+
+def test_monitor_margin_changes_the_running_flag_policy():
+    """stability_monitor's runtime margin/hysteresis reach the running estimator's flag, which keeps its state."""
+    from types import SimpleNamespace
+
+    from amb_dynamics.estimate import InstabilityFlag, VerdictPolicy
+    from stability_monitor.pipeline import MonitorPipeline, MonitorSettings
+
+    pl = MonitorPipeline(MonitorSettings(period=0.1))
+    flag = InstabilityFlag(VerdictPolicy(margin=0.02, hysteresis=0.02, z=3.0, confirm=2))
+    pl.estimator = SimpleNamespace(flag=flag)  # the running estimator's flag (only its policy is touched)
+    fit = SimpleNamespace(excited=True, rho=1.03, rho_std=0.0, resolved=True, reason="")
+    flag.update(fit)  # one of the two confirmations at margin 0.02 (1.03 >= 1.02)
+    pl.set_margins(0.05, 0.01)
+    assert (pl.s.margin, pl.s.hysteresis) == (0.05, 0.01)
+    assert flag.policy == VerdictPolicy(margin=0.05, hysteresis=0.01, z=3.0, confirm=2)
+    assert flag.update(fit) != "unstable" and not flag.unstable  # 1.03 < 1 + 0.05: not raised
+    pl.set_margins(0.02, 0.01)
+    flag.update(fit)
+    assert flag.update(fit) == "unstable"  # two confirmations at the restored margin

@@ -8,7 +8,8 @@ A real AMB controller is retuned while it levitates; so are these nodes, in two 
   sample it processes, never in the middle of one: the sample (k, t_k) it took effect at is stamped in /diagnostics.
 * the ``param_at`` parameter (``amb-rig run --param-at T NODE:NAME=VALUE``): a schedule of changes, each applied
   at the first sample t_k >= T by the node itself, so that a lockstep run with a schedule is as deterministic as
-  one without (the same sample every time, whatever the wall clock did).
+  one without (the same sample every time, whatever the wall clock did); in realtime, whose stamps are system
+  times, T counts from the first sample the node processed.
 
 Every applied change is published at once as an extra /diagnostics report (keys ``parameter changes``,
 ``last parameter change``, ``parameter change <n>``) and, through rclpy, on /parameter_events; the recorder
@@ -121,6 +122,8 @@ class LiveParams:
         self.changes: list[Change] = []
         self.rejected = 0
         self.last_rejection = ""
+        # lockstep stamps are t_k = k Ts from 0; realtime stamps are system times: T counts from the first sample
+        self.origin_ns: int | None = 0 if getattr(node, "mode", "lockstep") == "lockstep" else None
         node.add_on_set_parameters_callback(self._on_set)
 
     def _on_set(self, params: list[Parameter]) -> SetParametersResult:
@@ -148,7 +151,10 @@ class LiveParams:
 
     def at_sample(self, t_ns: int) -> None:
         """Call before computing sample t_ns: applies due scheduled and pending changes (cheap when none)."""
-        while self.schedule and self.schedule[0][0] <= t_ns:
+        if self.origin_ns is None:
+            self.origin_ns = t_ns
+        rel_ns = t_ns - self.origin_ns
+        while self.schedule and self.schedule[0][0] <= rel_ns:
             _, name, value = self.schedule.pop(0)
             self._source = PARAM_AT
             try:
@@ -159,7 +165,7 @@ class LiveParams:
                 self.node.get_logger().warning(f"{PARAM_AT}: {name}={value!r} at t = {t_ns * 1e-9:g} s rejected")
         if not self.pending:
             return
-        k = t_ns // self.node.Ts_ns
+        k = rel_ns // self.node.Ts_ns  # realtime: samples since the first one this node processed
         applied = {}
         for name, (value, source) in self.pending.items():
             self.changes.append(Change(name, self.node.p[name], value, k, t_ns, source))
