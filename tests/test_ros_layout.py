@@ -74,6 +74,10 @@ def test_executables_resolve_like_ros2_run(workspace):
         prefix, path = resolve(env, pkg, exe)
         assert prefix == install / pkg
         assert path == install / pkg / "lib" / pkg / exe
+    # the launch files, where ros2 launch looks for them (setup.py data_files)
+    launch = install / "amb_bringup" / "share" / "amb_bringup" / "launch"
+    assert sorted(p.name for p in launch.glob("*.launch.py")) == [
+        "record.launch.py", "rig.launch.py", "rig_no_plant.launch.py"]  # fmt: skip
 
 
 def test_installed_nodes_start(workspace, tmp_path, repo):
