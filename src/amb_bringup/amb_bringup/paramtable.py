@@ -5,13 +5,25 @@ The table is built from the nodes' own ``specs()`` (plus the common parameters o
 docs can never disagree with what a node accepts.  ``check_parameters`` validates a run's parameters before any
 process starts: an unknown key fails with the node, the key and the closest valid key (difflib), a value out of
 range or of the wrong kind with the range.
+
+Importing the four node modules (and the numerical stack behind them) takes ~1.2 s of CPU, most of the time a
+typo would take to fail, so the table is cached (``~/.cache/amb-rig/param-table-<hash>.json``, or under
+``$XDG_CACHE_HOME``) under a hash of every source file of the packages that declare parameters: any edit to them
+means a new hash and a fresh table, so the cache cannot go stale; an unwritable cache only costs the time.
 """
 
 from __future__ import annotations
 
 import difflib
+import hashlib
 import importlib
+import importlib.util
+import json
 import math
+import os
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any
 
 from amb_dynamics.errors import InputError
 
@@ -22,6 +34,33 @@ NODE_MODULES = {  # amb-rig name -> module whose specs() the node declares
     "monitor": "stability_monitor.node",
 }
 ROS_BUILTIN = ("use_sim_time",)  # declared by rclpy for every node
+SOURCE_PACKAGES = ("amb_dynamics", "amb_ros", "base_motion", "amb_controller", "amb_plant", "stability_monitor")
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A node parameter as the table keeps it (the fields of amb_ros.params.ParamSpec, without rclpy types: a
+    typed default without a value, such as a string array, is None)."""
+
+    name: str
+    default: Any
+    description: str
+    unit: str = ""
+    lo: float | None = None
+    hi: float | None = None
+    choices: tuple[str, ...] | None = None
+    config_key: str | None = None
+    none_value: Any = None
+    runtime: bool = False
+
+    @classmethod
+    def of(cls, spec) -> Spec:
+        values = {f.name: getattr(spec, f.name) for f in fields(cls)}
+        if not isinstance(values["default"], bool | int | float | str | list | tuple | type(None)):
+            values["default"] = None  # Parameter.Type.STRING_ARRAY and the like
+        if values["choices"] is not None:
+            values["choices"] = tuple(values["choices"])
+        return cls(**values)
 
 
 def node_specs(name: str) -> dict:
@@ -34,12 +73,51 @@ def node_specs(name: str) -> dict:
     own = importlib.import_module(NODE_MODULES[name]).specs()
     base = [ParamSpec("config_file", "", "rotor config YAML; empty = the seed rotor"),
             ParamSpec("set", Parameter.Type.STRING_ARRAY, "config overrides key=value")]  # fmt: skip
-    return {s.name: s for s in [*base, *common_specs(), *own]}
+    return {s.name: Spec.of(s) for s in [*base, *common_specs(), *own]}
 
 
-def table() -> dict[str, dict]:
-    """{amb-rig node name: {parameter: ParamSpec}} for every node amb-rig can start."""
-    return {name: node_specs(name) for name in NODE_MODULES}
+def source_hash() -> str:
+    """sha256 of every .py file of the packages whose code declares node parameters (paths and contents)."""
+    h = hashlib.sha256()
+    for pkg in SOURCE_PACKAGES:
+        spec = importlib.util.find_spec(pkg)
+        if spec is None or not spec.submodule_search_locations:
+            continue
+        for root in spec.submodule_search_locations:
+            for f in sorted(Path(root).rglob("*.py")):
+                h.update(f"{pkg}/{f.relative_to(root).as_posix()}".encode())
+                h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def cache_dir() -> Path:
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "amb-rig"
+
+
+def table(use_cache: bool = True) -> dict[str, dict[str, Spec]]:
+    """{amb-rig node name: {parameter: Spec}} for every node amb-rig can start."""
+    path = cache_dir() / f"param-table-{source_hash()}.json" if use_cache else None
+    if path is not None:
+        try:
+            doc = json.loads(path.read_text())
+            return {node: {k: Spec(**{**v, "choices": None if v["choices"] is None else tuple(v["choices"])})
+                           for k, v in specs.items()} for node, specs in doc.items()}  # fmt: skip
+        except (OSError, ValueError, TypeError, KeyError):
+            pass  # no cache yet (or unreadable): build it
+    out = {name: node_specs(name) for name in NODE_MODULES}
+    if path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_suffix(f".{os.getpid()}.tmp")
+            tmp.write_text(json.dumps({n: {k: asdict(v) for k, v in s.items()} for n, s in out.items()}))
+            tmp.replace(path)  # atomic: a concurrent amb-rig reads the old file or the new one
+            week_ago = path.stat().st_mtime - 7 * 86400
+            for old in path.parent.glob("param-table-*.json"):  # tables of sources unused for a week
+                if old.stat().st_mtime < week_ago:
+                    old.unlink(missing_ok=True)
+        except OSError:
+            pass
+    return out
 
 
 def closest(key: str, valid) -> str:
