@@ -156,15 +156,19 @@ def run(args) -> int:
 
     from amb_bag.msgdefs import message_class
     from amb_dynamics.config import load_config
+    from amb_dynamics.errors import InputError
     from amb_ros.qos import diagnostics_qos, latched_qos
 
     cfg = load_config(args.config, args.set)
+    try:  # before DDS starts: a port in use is a one-line error
+        server = foxglove.start_server(name="amb-rig", host=args.host, port=args.port)
+    except RuntimeError as exc:
+        raise InputError(f"cannot serve on {args.host}:{args.port} ({str(exc).splitlines()[0]})") from None
     stop = []
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)  # stop cleanly on our own flag
     signal.signal(signal.SIGINT, lambda *_: stop.append(1))
     signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
     node = rclpy.create_node("amb_live", enable_rosout=False, start_parameter_services=False)
-    server = foxglove.start_server(name="amb-rig", host=args.host, port=args.port)
     bridge = LiveBridge(cfg, args.currents)
     qos = {"/stability/unstable": latched_qos(), "/diagnostics": diagnostics_qos()}
     clock = node.get_clock()
@@ -207,9 +211,6 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(run(args))
     except (AmbError, DdsEnvError) as exc:
         print(f"amb-live: {exc}", file=sys.stderr)
-        sys.exit(2)
-    except OSError as exc:  # the port is taken
-        print(f"amb-live: cannot serve on {args.host}:{args.port} ({exc})", file=sys.stderr)
         sys.exit(2)
 
 
