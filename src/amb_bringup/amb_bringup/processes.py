@@ -110,6 +110,8 @@ def node_specs(args, run_dir: Path) -> list[ProcessSpec]:
     params = run_dir / "params.yaml"
     write_params_file(params, common, per)
     names = ["base_motion", "controller"] + ([] if args.no_plant else ["plant"])
+    if getattr(args, "only", None) == "plant":  # the rig side of a split run (amb_bringup.split)
+        names = ["plant"]
     specs = []
     for name in names:
         package, ros_exe, script, node = NODES[name]
