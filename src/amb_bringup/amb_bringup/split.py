@@ -30,6 +30,8 @@ def add_arguments(r) -> None:
                    "ROS_AUTOMATIC_DISCOVERY_RANGE / ROS_STATIC_PEERS, LOCALHOST when unset)")  # fmt: skip
     r.add_argument("--only", choices=("plant",), help="only the rig side (the plant): the counterpart of --no-plant "
                    "on another host")  # fmt: skip
+    r.add_argument("--no-base-motion", action="store_true", help="do not start base_motion: a real rig publishes "
+                   "/base/imu (and /base/angular_acceleration) from its own IMU")  # fmt: skip
 
 
 def check(args) -> str | None:
@@ -37,7 +39,11 @@ def check(args) -> str | None:
     if getattr(args, "only", None) == "plant":
         if args.no_plant:
             return "--only plant and --no-plant contradict each other (one side each)"
+        if args.no_base_motion:
+            return "--only plant starts no base_motion anyway: drop --no-base-motion"
         args.no_monitor = True  # the monitor runs on the host side, beside the controller
+    elif args.no_base_motion and not args.no_plant:
+        return "--no-base-motion needs --no-plant (the rig that measures the base motion also measures the rotor)"
     return None
 
 
