@@ -3,13 +3,15 @@
     amb-rig run --duration 5 --motion pitch --amplitude 0.3 --frequency 24.5 [--mode lockstep|realtime]
                 [--set key=value]... [--config F] [--param NODE:NAME=VALUE]... [--json] [--no-plant] [--bag DIR]
 
-Sequence: reserve a DDS domain (localhost only), start amb-rig's diagnostics collector, refuse to start if the
-domain already carries the topics this run publishes (another rig, an orphan, a player), start the processes
-(extras, base_motion, controller, plant), wait (bounded by --start-timeout) until every node reports on
-/diagnostics and the plant reports that it runs (the plant itself waits until controller and base motion are
-matched), then wait for the plant to finish its --duration (or, with --no-plant, for --duration of wall time),
-stop everything cleanly and print the summary.  Exit code 0 only if every process ran and ended as expected
-and no node ended with an ERROR diagnostic; 1 otherwise; 2 for bad arguments; 130/143 when interrupted.
+Sequence: reserve a DDS domain (localhost unless --discovery or the environment says otherwise), start
+amb-rig's diagnostics collector, refuse to start if the domain already carries the topics this run publishes
+(another rig, an orphan, a player), start the processes (extras, base_motion, controller, plant), wait (bounded
+by --start-timeout) until every node reports on /diagnostics and the plant reports that it runs (the plant itself
+waits until controller and base motion are matched), then wait for the plant to finish its --duration (or, with
+--no-plant, for --duration of wall time; a run split across two hosts ends with its other side:
+amb_bringup.split), stop everything cleanly and print the summary.  Exit code 0 only if every process ran and
+ended as expected and no node ended with an ERROR diagnostic; 1 otherwise; 2 for bad arguments; 130/143 when
+interrupted.
 """
 
 from __future__ import annotations
