@@ -103,16 +103,17 @@ def test_hil_across_two_network_namespaces(tmp_path, venv_bin, two_hosts):
         assert plant_side["ended_by"].startswith("the other side left")  # the host side ended the run
         ctl = host_side["nodes"]["controller"]["values"]
         plant = plant_side["nodes"]["plant"]["values"]
-        answered, lost = int(ctl["samples answered"]), int(ctl["samples lost"])
+        # realtime: a sample that never arrived shows as a gap in the sample stamps (`skipped ticks`)
+        answered, lost = int(ctl["samples answered"]), int(ctl["skipped ticks"])
         assert answered >= 2000  # about 3 s at 1 kHz
-        assert answered / (answered + lost) >= 0.99  # samples over the link that the controller answered
+        assert answered / (answered + lost) >= 0.99  # of the samples sent over the link, those answered
         commands_back = int(plant["samples answered"])  # commands that came back and answered a sample
         assert commands_back >= 0.99 * answered
         # the link is real: each sample and each command is at least one UDP frame on the veth
         assert tx1[0] - tx0[0] >= commands_back and tx1[1] - tx0[1] >= commands_back
         rtt = {q: float(plant[f"round trip {q} (us)"]) for q in ("p50", "p99", "max")}
         assert 0.0 < rtt["p50"] <= rtt["p99"] <= rtt["max"]
-        print(f"\nrealtime 1 kHz across the veth: {answered} samples answered, {lost} lost; round trip "
+        print(f"\nrealtime 1 kHz across the veth: {answered} samples answered, {lost} never arrived; round trip "
               f"p50 {rtt['p50']:.0f} us, p99 {rtt['p99']:.0f} us, max {rtt['max']:.0f} us; jitter (period error) "
               f"p50/p99 {ctl['period error p50 (us)']}/{ctl['period error p99 (us)']} us")  # fmt: skip
 
