@@ -115,7 +115,8 @@ def test_hil_across_two_network_namespaces(tmp_path, venv_bin, two_hosts):
         assert 0.0 < rtt["p50"] <= rtt["p99"] <= rtt["max"]
         print(f"\nrealtime 1 kHz across the veth: {answered} samples answered, {lost} never arrived; round trip "
               f"p50 {rtt['p50']:.0f} us, p99 {rtt['p99']:.0f} us, max {rtt['max']:.0f} us; jitter (period error) "
-              f"p50/p99 {ctl['period error p50 (us)']}/{ctl['period error p99 (us)']} us")  # fmt: skip
+              f"p50/p99 {ctl['period error p50 (us)']}/{ctl['period error p99 (us)']} us; the plant skipped "
+              f"{plant['skipped ticks']} ticks")  # fmt: skip
 
         (code_a, text_a), (code_b, text_b) = run_pair(
             tmp_path / "ls", venv_bin, ns, ["--duration", "0.1", "--initial-displacement", "1e-4"], ["--no-monitor"]
