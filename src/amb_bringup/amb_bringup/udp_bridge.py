@@ -153,7 +153,8 @@ def main(argv: list[str] | None = None) -> None:
     try:
         ensure_localhost_dds()
     except DdsEnvError as exc:
-        sys.exit(f"amb_udp_bridge: {exc}")
+        print(f"amb_udp_bridge: {exc}", file=sys.stderr)
+        sys.exit(2)
     import signal
 
     import rclpy
