@@ -24,7 +24,8 @@ pytestmark = pytest.mark.ros
 
 CHANNELS = ("amb1_y", "amb1_z", "amb5_y", "amb5_z")  # the seed rotor's, in the config's order
 GAIN = 2000.0  # A/m
-FRAMES = 300
+FRAMES = 200
+PERIOD_S = 0.01  # 100 Hz: best-effort QoS on a shared, loaded machine (at 500 Hz a busy test process dropped half)
 
 
 def test_frames_round_trip():
@@ -92,11 +93,11 @@ def test_bridge_translates_target_frames_to_dds_and_back(tmp_path):
             assert replies, bridge.text()[-2000:]
             time.sleep(0.3)
             replies.clear()
-            for k in range(1000, 1000 + FRAMES):  # 500 Hz, distinct values per channel
+            for k in range(1000, 1000 + FRAMES):  # distinct values per channel
                 y = (1e-5 * k, -2e-5, 3e-5 + 1e-9 * k, 4e-6 * (k % 7))
                 sent[k] = (k * 1_000_003, y)
                 target.sendto(frame(SAMPLE_MAGIC, k, k * 1_000_003, y), ("127.0.0.1", listen_port))
-                time.sleep(0.002)
+                time.sleep(PERIOD_S)
             time.sleep(0.5)
             bridge.stop()
             text = bridge.text()
@@ -106,9 +107,10 @@ def test_bridge_translates_target_frames_to_dds_and_back(tmp_path):
         ctl.close()
         target.close()
     answered = [r for r in replies if r is not None and r[0] in sent]
-    assert len(answered) >= 0.95 * FRAMES, (len(answered), text[-1500:])
+    assert len(answered) >= 0.9 * FRAMES, (len(answered), text[-1500:])  # best effort: a few may drop
     assert len({r[0] for r in answered}) == len(answered)  # each sample answered once
     for seq, t_ns, current in answered:
         assert t_ns == sent[seq][0]
         assert current == tuple(-GAIN * v for v in sent[seq][1])  # channel order restored, exact doubles
-    assert "commands out" in text
+    # every command that reached the bridge answered a sample it had sent, and every frame was well formed
+    assert "0 commands dropped, 0 bad frames" in text, text[-1500:]
