@@ -8,6 +8,7 @@ REF_VENV := .venv-ref
 # DDS stays on this machine: localhost-only discovery and a domain id per make invocation.
 # (The test session picks and locks its own id in tests/conftest.py.)
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+unexport ROS_STATIC_PEERS
 ROS_DOMAIN_ID ?= $(shell $(PYTHON) -c "import random; print(random.randint(10, 99))")
 export ROS_DOMAIN_ID
 export AMENT_PREFIX_PATH := $(CURDIR)/$(VENV)

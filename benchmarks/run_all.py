@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # DDS stays on this machine
+os.environ.pop("ROS_STATIC_PEERS", None)
 sys.path.insert(0, str(Path(__file__).parent))
 
 from amb_ros.env import ensure_localhost_dds

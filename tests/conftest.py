@@ -10,14 +10,15 @@ import pytest
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # forced: a user's wider discovery never reaches tests
+os.environ.pop("ROS_STATIC_PEERS", None)
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-from amb_ros.env import ensure_localhost_dds, reserve_domain_id
+from amb_ros.env import force_localhost_dds, reserve_domain_id
 
 # One domain per test session, locked so that concurrent sessions never share it.
 os.environ["ROS_DOMAIN_ID"] = str(reserve_domain_id())
-ensure_localhost_dds()
+force_localhost_dds()
 
 REPO = Path(__file__).resolve().parents[1]
 VENV_BIN = Path(sys.executable).parent

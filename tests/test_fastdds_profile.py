@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from amb_ros.env import child_env, ensure_localhost_dds
-from amb_ros.fastdds import PROFILE_FILE, PROFILE_VARS, SWITCH
+from amb_ros.fastdds import LOCALHOST_PROFILE_FILE, PROFILE_FILE, PROFILE_VARS, SWITCH
 
 SAMPLES = 2000
 
@@ -78,13 +78,32 @@ def event_thread_wakeups_per_sample(env: dict) -> float:
 
 def test_every_process_gets_the_rig_profile_unless_switched_off_or_the_user_has_one(tmp_path):
     env = ensure_localhost_dds({})
-    assert env["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(PROFILE_FILE) and PROFILE_FILE.is_file()
-    assert child_env({})["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(PROFILE_FILE)
+    assert env["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(LOCALHOST_PROFILE_FILE) and LOCALHOST_PROFILE_FILE.is_file()
+    assert child_env({})["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(LOCALHOST_PROFILE_FILE)
+    # a wider discovery the user asked for gets the profile without the loopback-only transports, also when the
+    # parent's localhost profile was inherited
+    wide = child_env(
+        {"ROS_AUTOMATIC_DISCOVERY_RANGE": "subnet", "FASTRTPS_DEFAULT_PROFILES_FILE": str(LOCALHOST_PROFILE_FILE)}
+    )
+    assert wide["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(PROFILE_FILE) and PROFILE_FILE.is_file()
+    peers = ensure_localhost_dds({"ROS_STATIC_PEERS": "10.213.77.2"})
+    assert peers["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(PROFILE_FILE)
     assert not any(v in ensure_localhost_dds({SWITCH: "0"}) for v in PROFILE_VARS)
     own = tmp_path / "mine.xml"
     for var in PROFILE_VARS:
         env = ensure_localhost_dds({var: str(own)})
         assert env[var] == str(own) and {v for v in PROFILE_VARS if v in env} == {var}
+
+
+def test_the_two_profiles_share_their_writer_settings():
+    def writer(path):
+        text = path.read_text()
+        return text[text.index("<data_writer") : text.index("</data_writer>")]
+
+    assert "disable_heartbeat_piggyback" in writer(PROFILE_FILE)
+    assert writer(PROFILE_FILE) == writer(LOCALHOST_PROFILE_FILE)
+    assert "<address>127.0.0.1</address>" in LOCALHOST_PROFILE_FILE.read_text()
+    assert "interfaceWhiteList" not in PROFILE_FILE.read_text()
 
 
 def test_the_profile_spares_the_readers_event_thread(tmp_path):

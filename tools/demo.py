@@ -29,6 +29,7 @@ def step(title: str, cmd: list[str]) -> None:
 
 def main() -> None:
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # DDS stays on this machine
+    os.environ.pop("ROS_STATIC_PEERS", None)
     OUT.mkdir(exist_ok=True)
     dyn = str(BIN / "amb-dynamics")
     step(

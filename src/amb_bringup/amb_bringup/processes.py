@@ -111,6 +111,10 @@ def node_specs(args, run_dir: Path) -> list[ProcessSpec]:
     params = run_dir / "params.yaml"
     write_params_file(params, common, per)
     names = ["base_motion", "controller"] + ([] if args.no_plant else ["plant"])
+    if getattr(args, "only", None) == "plant":  # the rig side of a split run (amb_bringup.split)
+        names = ["plant"]
+    if getattr(args, "no_base_motion", False):  # a real rig's own IMU publishes the base motion
+        names.remove("base_motion")
     specs = []
     for name in names:
         package, ros_exe, script, node = NODES[name]

@@ -3,13 +3,15 @@
     amb-rig run --duration 5 --motion pitch --amplitude 0.3 --frequency 24.5 [--mode lockstep|realtime]
                 [--set key=value]... [--config F] [--param NODE:NAME=VALUE]... [--json] [--no-plant] [--bag DIR]
 
-Sequence: reserve a DDS domain (localhost only), start amb-rig's diagnostics collector, refuse to start if the
-domain already carries the topics this run publishes (another rig, an orphan, a player), start the processes
-(extras, base_motion, controller, plant), wait (bounded by --start-timeout) until every node reports on
-/diagnostics and the plant reports that it runs (the plant itself waits until controller and base motion are
-matched), then wait for the plant to finish its --duration (or, with --no-plant, for --duration of wall time),
-stop everything cleanly and print the summary.  Exit code 0 only if every process ran and ended as expected
-and no node ended with an ERROR diagnostic; 1 otherwise; 2 for bad arguments; 130/143 when interrupted.
+Sequence: reserve a DDS domain (localhost unless --discovery or the environment says otherwise), start
+amb-rig's diagnostics collector, refuse to start if the domain already carries the topics this run publishes
+(another rig, an orphan, a player), start the processes (extras, base_motion, controller, plant), wait (bounded
+by --start-timeout) until every node reports on /diagnostics and the plant reports that it runs (the plant itself
+waits until controller and base motion are matched), then wait for the plant to finish its --duration (or, with
+--no-plant, for --duration of wall time; a run split across two hosts ends with its other side:
+amb_bringup.split), stop everything cleanly and print the summary.  Exit code 0 only if every process ran and
+ended as expected and no node ended with an ERROR diagnostic; 1 otherwise; 2 for bad arguments; 130/143 when
+interrupted.
 """
 
 from __future__ import annotations
@@ -26,9 +28,10 @@ from pathlib import Path
 
 from amb_dynamics.config import load_config
 from amb_dynamics.errors import AmbError
+from amb_ros.discovery import DiscoveryError, apply_choice
 from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds, hold_run_lock
 
-from . import live, paramfile
+from . import live, paramfile, split
 from .domain import Watch, describe, foreign_publishers, topics_of
 from .processes import all_specs
 from .summary import build_summary, format_summary
@@ -75,6 +78,7 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--no-plant", action="store_true", help="no plant: a real rig supplies /amb/displacement")
     r.add_argument("--bag", help="record the run with amb-bag into this folder")
     r.add_argument("--no-monitor", action="store_true", help="do not start the stability monitor")
+    split.add_arguments(r)  # --discovery, --only plant
     r.add_argument("--log-dir", help="folder for the node logs and params file (default: a new temp folder)")
     r.add_argument("--start-timeout", type=float, default=60.0, help="bound on start-up and connection (s)")
     r.add_argument("--timeout", type=float, help="bound on the whole run (wall s; default from the duration)")
@@ -107,9 +111,17 @@ def main(argv: list[str] | None = None) -> None:
         paramfile.print_params(args, *params)
         sys.exit(0)
     try:
-        ensure_localhost_dds()
+        apply_choice(args.discovery, os.environ)
+        ensure_localhost_dds()  # one warning line when discovery is wider than localhost
+        bad = split.check(args)
+    except (DiscoveryError, DdsEnvError) as exc:
+        bad = str(exc)
+    if bad:
+        print(f"amb-rig: {bad}", file=sys.stderr)
+        sys.exit(EXIT_USAGE)
+    try:
         cfg = load_config(args.config, args.set)  # validate before starting anything
-        lock = hold_run_lock(os.environ["ROS_DOMAIN_ID"], LOCK_WAIT_S, _say_waiting)
+        lock = split.hold_locks(hold_run_lock, os.environ["ROS_DOMAIN_ID"], args, LOCK_WAIT_S, _say_waiting)
     except (AmbError, DdsEnvError) as exc:
         raise SystemExit(f"amb-rig: {exc}") from None
     if args.duration <= 0 and not args.no_plant:
@@ -126,7 +138,7 @@ def main(argv: list[str] | None = None) -> None:
 
 
 def run(args, cfg, lock) -> int:
-    """One run; ``lock`` is the domain's run lock (an open file), passed on to every child."""
+    """One run; ``lock`` is the domain's run locks (open files), passed on to every child."""
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
@@ -155,21 +167,25 @@ def run(args, cfg, lock) -> int:
         print(f"amb-rig: {describe(found, domain)}", file=sys.stderr)
         return EXIT_FAILED
     watch = Watch(collector.node, topics, domain)
-    sup = Supervisor(log_dir, child_env(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1"), (lock.fileno(),))
+    sup = Supervisor(
+        log_dir, child_env(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1"), tuple(fh.fileno() for fh in lock)
+    )
     errors: list[str] = []
+    peer = split.PeerEnd(collector.node, collector, args)
     t0 = time.monotonic()
     try:
         for spec in specs:
             child = sup.start(spec)
             print(f"amb-rig: started {spec.name} (pid {child.pid}), log {child.log}", file=sys.stderr, flush=True)
         if not errors:
-            errors += wait_run(args, sup, collector, interrupted, watch)
+            errors += wait_run(args, sup, collector, interrupted, watch, peer)
     finally:
         sup.stop_all()
         time.sleep(0.2)  # final diagnostics were acknowledged before the nodes exited; let the thread store them
         collector.close()
         rclpy.try_shutdown()
     errors += judge(sup, collector, interrupted)
+    errors, notes = split.forgive_final_loss(errors, peer)
     motion = (args.motion or cfg.base_motion.kind, args.amplitude, args.frequency)
     run_info = {
         "mode": args.mode,
@@ -182,6 +198,10 @@ def run(args, cfg, lock) -> int:
         "run_wall_s": round(time.monotonic() - t0, 3),
         "log_dir": str(log_dir),
         "interrupted": interrupted.signum is not None,
+        "discovery": os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "")
+        + (f" + peers {os.environ['ROS_STATIC_PEERS']}" if os.environ.get("ROS_STATIC_PEERS") else ""),
+        **({"ended_by": peer.reason} if peer.reason else {}),
+        **({"notes": notes} if notes else {}),
     }
     summary = build_summary(run_info, sup.children, collector, errors)
     print(json.dumps(summary, indent=2) if args.json else format_summary(summary), flush=True)
@@ -196,7 +216,7 @@ def _g(value, default) -> str:
 
 def default_timeout(args) -> float:
     """Wall-time bound of a run: generous (100 lockstep steps/s would still finish), never endless."""
-    if args.mode == "realtime" or args.no_plant:
+    if args.mode == "realtime" or (args.no_plant and args.mode != "lockstep"):
         return 60.0 + args.duration
     rate = load_config(args.config, args.set).controller.rate_hz
     return 120.0 + args.duration * rate / 100.0
@@ -216,7 +236,7 @@ def plant_running_for(collector, plant) -> float:
         return 0.0
 
 
-def wait_run(args, sup: Supervisor, collector, interrupted, watch: Watch) -> list[str]:
+def wait_run(args, sup: Supervisor, collector, interrupted, watch: Watch, peer=None) -> list[str]:
     """Wait for start-up, then for the end of the run; return error messages (empty: all went well)."""
     plant = sup.find("plant")
     nodes = [c for c in sup.children if c.spec.node]
@@ -251,7 +271,11 @@ def wait_run(args, sup: Supervisor, collector, interrupted, watch: Watch) -> lis
             grace_end = grace_end or time.monotonic() + (PEER_DEATH_GRACE_S if plant is not None else 0.0)
             if time.monotonic() >= grace_end:
                 break
-        if (plant is None or not plant.spec.ends_run) and time.monotonic() - run_start >= args.duration:
+        if peer is not None and peer.ended():
+            break  # a split run: the other side has ended (amb_bringup.split)
+        if peer is not None and peer.owns_end:
+            pass  # --no-plant in lockstep: the plant (on the other side) ends the run
+        elif (plant is None or not plant.spec.ends_run) and time.monotonic() - run_start >= args.duration:
             break  # realtime or --no-plant: amb-rig ends the run after --duration of wall time
         if time.monotonic() - run_start > limit:
             return [f"run timed out after {limit:g} s of wall time (--timeout)"]

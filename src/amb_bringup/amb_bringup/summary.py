@@ -81,6 +81,9 @@ def format_summary(s: dict) -> str:
     if s.get("stability"):
         st = s["stability"]
         lines.append(f"  stability monitor: {'UNSTABLE' if st['unstable'] else st['verdict']} - {st['message']}")
+    if s.get("discovery", "LOCALHOST") != "LOCALHOST" or s.get("ended_by"):  # a run across hosts (split.py)
+        ended = f", ended: {s['ended_by']}" if s.get("ended_by") else ""
+        lines.append(f"  discovery: {s.get('discovery')}{ended}" + "".join(f"; {n}" for n in s.get("notes", [])))
     lines.append("  nodes:")
     for name, n in s["nodes"].items():
         lines.append(f"    {name:<12} {n['level']:<5} {n['exit']:<22} {n['message']}")

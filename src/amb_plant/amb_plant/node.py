@@ -103,6 +103,7 @@ class PlantNode(RigNode):
         self.failure = ""
         self.finished = False
         self.round_trip = Timings()
+        self.sample_round_trip = Timings()  # realtime: sample published -> its command back, this plant's clock
         self.period_error = Timings()
         self.missed = 0
         self.skipped = 0
@@ -168,6 +169,7 @@ class PlantNode(RigNode):
                 self.counters.reject(m.CURRENT, "command answers no sample of this plant (or one too old)")
             else:
                 self.policy.command(current.copy(), answered)
+                self.sample_round_trip.add((self.get_clock().now().nanoseconds - t_ns) * 1e-9)
             return
         k = self._grid_steps(m.CURRENT, t_ns)
         if k is None:
@@ -358,6 +360,8 @@ class PlantNode(RigNode):
                         "command losses": str(pol.losses), "command state": pol.state,
                         "missed deadlines": str(self.missed), "skipped ticks": str(self.skipped)})  # fmt: skip
             out.update(self.period_error.summary("period error"))
+            out["samples answered"] = str(self.sample_round_trip.count)
+            out.update(self.sample_round_trip.summary("round trip"))
         return out
 
 

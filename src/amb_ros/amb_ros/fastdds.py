@@ -1,8 +1,12 @@
-"""The rig's Fast DDS profile (``fastdds_profile.xml`` next to this module), applied through the environment.
+"""The rig's Fast DDS profiles (XML files next to this module), applied through the environment.
 
 Fast DDS reads its default profiles from the file named by ``FASTRTPS_DEFAULT_PROFILES_FILE`` when the first
 participant is created, so setting it before ``rclpy.init`` (or in a child's environment) is enough.  A profile
 file of the user's own is left alone.  Other RMW implementations ignore the variable.
+
+Two files: ``fastdds_profile_localhost.xml`` for localhost-only discovery (the writer settings below plus
+transports bound to loopback only: shared memory and UDPv4 on 127.0.0.1), ``fastdds_profile.xml`` for a wider
+discovery the user asked for (the writer settings alone: Fast DDS's own transports on every interface).
 
 On by default; ``AMB_RIG_FASTDDS_PROFILE=0`` turns it off.  With it, short lockstep runs got fast enough to end
 before amb-rig's collector had discovered base_motion and the controller, whose reports were then lost; every
@@ -14,13 +18,21 @@ from __future__ import annotations
 from pathlib import Path
 
 PROFILE_FILE = Path(__file__).with_name("fastdds_profile.xml")
+LOCALHOST_PROFILE_FILE = Path(__file__).with_name("fastdds_profile_localhost.xml")
 PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 SWITCH = "AMB_RIG_FASTDDS_PROFILE"  # "0": Fast DDS's own defaults
+_OURS = {str(PROFILE_FILE), str(LOCALHOST_PROFILE_FILE)}
 
 
-def use_rig_profile(env: dict) -> dict:
-    """Point Fast DDS at the rig's profile in ``env`` unless a profile file is already given or
-    ``AMB_RIG_FASTDDS_PROFILE=0``; returns ``env``."""
-    if env.get(SWITCH) != "0" and not any(env.get(var) for var in PROFILE_VARS):
-        env[PROFILE_VARS[0]] = str(PROFILE_FILE)
+def use_rig_profile(env: dict, localhost_only: bool = True) -> dict:
+    """Point Fast DDS at the rig's profile for this discovery in ``env`` unless a profile file of the user's own
+    is given or ``AMB_RIG_FASTDDS_PROFILE=0``; returns ``env``.  One of the rig's own files (inherited from a
+    parent whose discovery differed) is replaced by the one that fits."""
+    given = [var for var in PROFILE_VARS if env.get(var)]
+    if any(env[var] not in _OURS for var in given):
+        return env
+    for var in given:
+        del env[var]
+    if env.get(SWITCH) != "0":
+        env[PROFILE_VARS[0]] = str(LOCALHOST_PROFILE_FILE if localhost_only else PROFILE_FILE)
     return env

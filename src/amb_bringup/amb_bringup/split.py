@@ -1,0 +1,111 @@
+"""A run split across two amb-rig processes (two hosts, or a host and a real rig): options, locks, the peer's end.
+
+``amb-rig run --only plant`` is the rig side alone (a stand-in for a real rig's I/O computer: it publishes
+/amb/displacement and takes /amb/current); ``amb-rig run --no-plant`` is the host side (base_motion, controller,
+monitor).  ``--discovery`` says how far DDS discovery reaches (``amb_ros.discovery``; localhost by default).
+
+Who ends the run: in lockstep the plant (the clock master) after --duration of simulated time, and the host side
+ends when the plant has finished (its final /diagnostics, or its /amb/displacement publisher gone); in realtime
+the host side after --duration of wall time, and the plant side when the controller has left (its /amb/current
+publisher gone) or after its own --duration, whichever comes first.  The plant then has seen the commands stop
+once, at the end, and reports it (held, then zero current: what a real rig must do); amb-rig does not count that
+one final loss as a failure when the controller had left, and says so in the summary.
+"""
+
+from __future__ import annotations
+
+import time
+
+from amb_ros import messages as m
+from amb_ros.discovery import CHOICES
+
+SIDES = ("plant", "host")
+PEER_POLL_S = 0.1
+PLANT_NODE = "amb_plant"
+
+
+def add_arguments(r) -> None:
+    """``--discovery`` and ``--only`` on the ``run`` subparser."""
+    r.add_argument("--discovery", metavar="RANGE", help=f"DDS discovery: {CHOICES} (default: the environment's "
+                   "ROS_AUTOMATIC_DISCOVERY_RANGE / ROS_STATIC_PEERS, LOCALHOST when unset)")  # fmt: skip
+    r.add_argument("--only", choices=("plant",), help="only the rig side (the plant): the counterpart of --no-plant "
+                   "on another host")  # fmt: skip
+    r.add_argument("--no-base-motion", action="store_true", help="do not start base_motion: a real rig publishes "
+                   "/base/imu (and /base/angular_acceleration) from its own IMU")  # fmt: skip
+
+
+def check(args) -> str | None:
+    """An error message for contradictory options, else None (``--only plant`` implies --no-monitor)."""
+    if getattr(args, "only", None) == "plant":
+        if args.no_plant:
+            return "--only plant and --no-plant contradict each other (one side each)"
+        if args.no_base_motion:
+            return "--only plant starts no base_motion anyway: drop --no-base-motion"
+        args.no_monitor = True  # the monitor runs on the host side, beside the controller
+    elif args.no_base_motion and not args.no_plant:
+        return "--no-base-motion needs --no-plant (the rig that measures the base motion also measures the rotor)"
+    return None
+
+
+def sides(args) -> tuple[str, ...]:
+    """The sides of a run this amb-rig holds: both, or the plant's (--only plant) or the host's (--no-plant)."""
+    if getattr(args, "only", None) == "plant":
+        return ("plant",)
+    return ("host",) if args.no_plant else SIDES
+
+
+def hold_locks(hold_run_lock, domain: str, args, wait_s: float, on_wait) -> list:
+    """The run locks of this run's sides (closed again if one of them is held by another run)."""
+    held = []
+    try:
+        for side in sides(args):
+            held.append(hold_run_lock(domain, wait_s, on_wait, side=side))
+    except Exception:
+        for fh in held:
+            fh.close()
+        raise
+    return held
+
+
+class PeerEnd:
+    """Has the other side of a split run ended?  The host side watches the plant, the plant side the controller."""
+
+    def __init__(self, node, collector, args):
+        self.node, self.collector = node, collector
+        only_plant = getattr(args, "only", None) == "plant"
+        self.active = (only_plant and args.mode == "realtime") or (args.no_plant and args.mode == "lockstep")
+        self.owns_end = args.no_plant and args.mode == "lockstep"  # no wall-time end: the plant's end is the end
+        self.topic = m.CURRENT if only_plant else m.DISPLACEMENT
+        self.seen = False
+        self.reason = ""
+        self._next = 0.0
+
+    def ended(self) -> bool:
+        """True once the peer was there and has gone (or, for a plant, reported that it finished)."""
+        if not self.active or self.reason:
+            return bool(self.reason)
+        now = time.monotonic()
+        if now < self._next:
+            return False
+        self._next = now + PEER_POLL_S
+        count = len(self.node.get_publishers_info_by_topic(self.topic))
+        diag = self.collector.get(PLANT_NODE) if self.topic == m.DISPLACEMENT else None
+        if diag is not None and diag["final"] and diag["message"].startswith("finished"):
+            self.reason = "the plant finished"
+        elif self.seen and count == 0:
+            self.reason = f"the other side left ({self.topic} has no publisher)"
+        self.seen = self.seen or count > 0
+        return bool(self.reason)
+
+
+def forgive_final_loss(errors: list[str], peer: PeerEnd) -> tuple[list[str], list[str]]:
+    """(errors, notes): the plant side's one loss of commands at the end, after the controller left, is a note."""
+    if not (peer.active and peer.reason and peer.topic == m.CURRENT):
+        return errors, []
+    kept, notes = [], []
+    for err in errors:
+        if err.startswith("plant reported ERROR: commands stopped 1 time(s)"):
+            notes.append(f"{err[len('plant reported ERROR: ') :]} (after {peer.reason}: the end of the run)")
+        else:
+            kept.append(err)
+    return kept, notes

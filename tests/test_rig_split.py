@@ -1,0 +1,98 @@
+"""A run split across two amb-rig processes: which nodes each side starts, its gates and locks, and when it ends."""
+
+from __future__ import annotations
+
+import subprocess
+
+import pytest
+
+from amb_bringup import split
+from amb_bringup.processes import node_parameters, node_specs
+from amb_bringup.rig import parser
+from amb_ros import messages as m
+
+
+def parsed(*argv: str):
+    args = parser().parse_args(["run", *argv])
+    assert split.check(args) is None
+    return args
+
+
+@pytest.mark.parametrize(
+    ("argv", "names", "sides"),
+    [
+        ((), ["base_motion", "controller", "plant"], ("plant", "host")),
+        (("--only", "plant"), ["plant"], ("plant",)),
+        (("--no-plant",), ["base_motion", "controller"], ("host",)),
+        (("--no-plant", "--no-base-motion"), ["controller"], ("host",)),
+    ],
+)
+def test_each_side_starts_its_own_nodes_and_holds_its_own_lock(tmp_path, argv, names, sides):
+    args = parsed(*argv)
+    assert [s.name for s in node_specs(args, tmp_path)] == names
+    assert split.sides(args) == sides
+
+
+def test_the_plant_side_waits_for_the_remote_controller_only():
+    args = parsed("--only", "plant")
+    assert args.no_monitor  # the monitor belongs to the host side
+    _, per = node_parameters(args)
+    assert per["plant"]["min_subscribers"] == 1 and per["plant"]["min_state_subscribers"] == 0
+    _, per = node_parameters(parsed("--only", "plant", "--bag", "b"))
+    assert per["plant"]["min_subscribers"] == 2  # + the recorder beside it
+
+
+@pytest.mark.parametrize(
+    "argv", [("--only", "plant", "--no-plant"), ("--no-base-motion",), ("--only", "plant", "--no-base-motion")]
+)
+def test_contradictions_are_refused_with_one_line_and_exit_2(venv_bin, argv):
+    out = subprocess.run([str(venv_bin / "amb-rig"), "run", *argv], capture_output=True, text=True, timeout=60)
+    lines = [ln for ln in (out.stdout + out.stderr).splitlines() if ln.strip()]
+    assert out.returncode == 2 and len(lines) == 1 and lines[0].startswith("amb-rig: --"), out
+
+
+class FakeGraph:
+    def __init__(self):
+        self.count, self.diag = 0, None
+
+    def get_publishers_info_by_topic(self, topic):
+        return [object()] * self.count
+
+    def get(self, node):
+        return self.diag
+
+
+def test_the_plant_side_ends_when_the_controller_has_left():
+    graph = FakeGraph()
+    peer = split.PeerEnd(graph, graph, parsed("--only", "plant", "--mode", "realtime"))
+    assert peer.active and not peer.owns_end and peer.topic == m.CURRENT
+    assert not peer.ended()  # never there yet: still starting
+    graph.count = 1
+    peer._next = 0.0
+    assert not peer.ended()
+    graph.count = 0
+    peer._next = 0.0
+    assert peer.ended() and "left" in peer.reason
+    errors = ["plant reported ERROR: commands stopped 1 time(s): held 10 samples, then zero current for 3 samples",
+              "controller exited unexpectedly"]  # fmt: skip
+    kept, notes = split.forgive_final_loss(errors, peer)
+    assert kept == ["controller exited unexpectedly"] and len(notes) == 1 and "end of the run" in notes[0]
+    # a loss in mid-run (more than the final one) stays an error
+    many = ["plant reported ERROR: commands stopped 2 time(s): held 10 samples, then zero current for 3 samples"]
+    assert split.forgive_final_loss(many, peer) == (many, [])
+
+
+def test_the_host_side_in_lockstep_ends_when_the_plant_has_finished():
+    graph = FakeGraph()
+    peer = split.PeerEnd(graph, graph, parsed("--no-plant"))
+    assert peer.active and peer.owns_end and peer.topic == m.DISPLACEMENT
+    graph.count = 1
+    graph.diag = {"final": False, "message": "running: 10 steps"}
+    assert not peer.ended()
+    graph.diag = {"final": True, "message": "finished: 500 steps"}
+    peer._next = 0.0
+    assert peer.ended() and peer.reason == "the plant finished"
+    assert split.forgive_final_loss(["plant reported ERROR: commands stopped 1 time(s)"], peer)[1] == []
+    # realtime host side and full rigs: amb-rig's own --duration ends the run
+    assert not split.PeerEnd(graph, graph, parsed("--no-plant", "--mode", "realtime")).active
+    assert not split.PeerEnd(graph, graph, parsed()).active
