@@ -92,11 +92,14 @@ def estimate_sensitivity(
     nperseg: int | None = None,
     band_hz: tuple[float, float] | None = None,
     window: str = "hann",
+    noverlap: int | None = None,
 ) -> MeasuredSensitivity:
     """H1 and coherence of ym (disturbed sensor signal) over e (injected disturbance), both sampled at fs (Hz).
 
     nperseg : samples per Welch segment (default: the record split into 8 segments with 50 % overlap);
-    band_hz : keep only lo <= f <= hi.
+    band_hz : keep only lo <= f <= hi;
+    window, noverlap : Welch window and overlap (default hann, nperseg // 2); a multisine is analysed with
+        ``window="boxcar"``, ``nperseg`` = its period and ``noverlap=0`` (every line on a bin, no leakage).
     """
     e = np.asarray(e, dtype=float)
     ym = np.asarray(ym, dtype=float)
@@ -106,7 +109,7 @@ def estimate_sensitivity(
         raise InputError("injection record holds NaN or inf samples")
     if nperseg is None:
         nperseg = max(16, e.size * 2 // (MIN_SEGMENTS * 2 + 1))
-    noverlap = nperseg // 2
+    noverlap = nperseg // 2 if noverlap is None else noverlap
     segments = 1 + (e.size - nperseg) // (nperseg - noverlap) if e.size >= nperseg else 0
     if segments < MIN_SEGMENTS:
         raise InputError(
