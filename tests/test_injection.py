@@ -76,3 +76,10 @@ def test_signals_peak_band_and_window():
 def test_bad_specs(spec, needle):
     with pytest.raises(InputError, match=needle):
         Injection(spec, FS)
+
+
+def test_per_sample_value_equals_vectorised():
+    for kind in ("multisine", "swept", "stepped"):
+        inj = Injection(InjectionSpec(kind, 1e-5, (5.0, 50.0), 3.0, 0.5, 0.5, ramp_s=0.3), FS)
+        k = np.arange(0, 4000, 7)
+        assert np.allclose([inj.value(int(i)) for i in k], inj.values(k), rtol=0, atol=1e-18), kind

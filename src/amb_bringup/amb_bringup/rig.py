@@ -2,6 +2,7 @@
 
     amb-rig run --duration 5 --motion pitch --amplitude 0.3 --frequency 24.5 [--mode lockstep|realtime]
                 [--set key=value]... [--config F] [--param NODE:NAME=VALUE]... [--json] [--no-plant] [--bag DIR]
+    amb-rig sensitivity --axis amb1_y [--band 5:50] [--duration 20] ... (amb_bringup.sensitivity_cmd)
 
 Sequence: reserve a DDS domain (localhost only), start amb-rig's diagnostics collector, refuse to start if the
 domain already carries the topics this run publishes (another rig, an orphan, a player), start the processes
@@ -77,6 +78,9 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--log-dir", help="folder for the node logs and params file (default: a new temp folder)")
     r.add_argument("--start-timeout", type=float, default=60.0, help="bound on start-up and connection (s)")
     r.add_argument("--timeout", type=float, help="bound on the whole run (wall s; default from the duration)")
+    from .sensitivity_cmd import add_parser as add_sensitivity_parser  # ISO 14839-3 measurement (own module)
+
+    add_sensitivity_parser(sub)
     return ap
 
 
@@ -94,6 +98,10 @@ class Interrupted:
 
 def main(argv: list[str] | None = None) -> None:
     args = parser().parse_args(argv)
+    if args.command == "sensitivity":
+        from .sensitivity_cmd import main_sensitivity
+
+        sys.exit(main_sensitivity(args))
     try:
         ensure_localhost_dds()
         cfg = load_config(args.config, args.set)  # validate before starting anything

@@ -38,6 +38,7 @@ from amb_ros.qos import data_qos, latched_qos
 from amb_ros.runtime import run_node
 
 from .excitation import KINDS, Excitation
+from .injection_hook import InjectionHook, injection_specs
 from .realtime import on_realtime_sample, run_sample_triggered, run_timer_triggered
 
 
@@ -68,6 +69,7 @@ def specs() -> list[ParamSpec]:
         ParamSpec("safe_proportional_gain", 0.0, "kp of the safe gain set; 0 = the nominal kp", "A/m", 0.0, 1e12),
         ParamSpec("safe_derivative_gain", 0.0, "kd of the safe gain set; 0 = twice the nominal kd (more damping)",
                   "A s/m", 0.0, 1e12),
+        *injection_specs(),
     ]  # fmt: skip
 
 
@@ -99,6 +101,7 @@ class ControllerNode(RigNode):
             self.safe_coeffs = DiscretePIDCoefficients.from_gains(safe, self.Ts)
             # served by Waiter.serve() (every ~0.1 s wall): the switch is a safety action, not part of the lockstep
             self.unstable_sub = self.create_subscription(Bool, m.UNSTABLE, self.on_unstable, latched_qos())
+        self.injection = InjectionHook(self)  # sensor-signal disturbance (ISO 14839-3), off by default
         self.waiter = Waiter(self, [self.sub])
         self.answered = self.saturated = self.lost = self.restarts = self.repeated = 0
         self.sensor_losses = self.safe_ticks = self.nonfinite = 0
@@ -157,6 +160,7 @@ class ControllerNode(RigNode):
 
     def answer(self, t_ns: int, y: np.ndarray, t: float) -> None:
         t0 = time.perf_counter()
+        y = self.injection.apply(t_ns, y, t)
         with np.errstate(over="ignore", invalid="ignore"):
             u = self.pid.step(y)
         if self.excitation.active:
@@ -237,6 +241,7 @@ class ControllerNode(RigNode):
                 "wall time (s)": f"{time.monotonic() - self.t_wall0:.3f}",
             }
         )
+        out.update(self.injection.values())
         out.update(self.compute.summary("compute"))
         if self.mode == "realtime":
             out.update({"trigger": self.p["trigger"], "ticks": str(self.ticks), "missed deadlines": str(self.missed),

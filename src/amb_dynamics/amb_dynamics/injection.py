@@ -14,6 +14,7 @@ A raised-cosine fade-in over ``ramp_s`` limits the switch-on transient.  E is 0 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,6 +80,9 @@ class Injection:
             self._f, self._phase = f, -np.pi * n * (n + 1) / f.size  # Schroeder
             period = self.period_samples()
             self._scale = spec.amplitude / np.abs(self._raw(np.arange(period) / fs)).max()
+            self._table = self._scale * self._raw(np.arange(period) / fs)  # one period: O(1) per sample
+        self._k0 = round(spec.start_s * fs)
+        self._n = round(spec.duration_s * fs)
 
     @property
     def active(self) -> bool:
@@ -118,7 +122,16 @@ class Injection:
         return out
 
     def value(self, k: int) -> float:
-        return float(self.values(np.array([k]))[0])
+        """E (m) at sample k: the controller's per-sample call (a table look-up for a multisine)."""
+        s = self.spec
+        i = k - self._k0
+        if not self.active or i < 0 or i >= self._n:
+            return 0.0
+        if s.kind != "multisine":
+            return float(self.values(np.array([k]))[0])
+        t = i / self.fs
+        ramp = 1.0 if s.ramp_s <= 0 or t >= s.ramp_s else 0.5 - 0.5 * math.cos(math.pi * t / s.ramp_s)
+        return float(self._table[i % self._table.size]) * ramp
 
 
 def predicted_peak_current(model, cfg, axis: int, injection: Injection, speed_rpm: float | None = None) -> float:

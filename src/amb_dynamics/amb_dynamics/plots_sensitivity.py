@@ -52,3 +52,31 @@ def sensitivity_figure(speeds: list[dict], limits_abs, title: str, out: Path | s
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return _save(fig, out)
+
+
+def measured_figure(report: dict, limits_abs, title: str, out: Path | str):
+    """Measured |S_jj| (points, coherence below) with the model beside it (line) and the zone bands."""
+    f = np.asarray(report["frequency_hz"])
+    mag = 20 * np.log10(np.asarray(report["abs"]))
+    fig, (ax, axc) = plt.subplots(2, 1, figsize=(7, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    lim_db = [20 * np.log10(x) for x in limits_abs]
+    curves = [mag] + ([20 * np.log10(np.asarray(report["model_abs"]))] if "model_abs" in report else [])
+    top = max(max(c.max() for c in curves), lim_db[-1]) + 6
+    bottom = min(-20.0, min(c.min() for c in curves) - 3)
+    for z, (a, b) in enumerate(zip([bottom, *lim_db], [*lim_db, top], strict=True)):
+        ax.axhspan(a, b, color=ZONE_COLORS[z], alpha=0.12, lw=0)
+    if "model_abs" in report:
+        ax.semilogx(f, curves[1], "-", color="tab:blue", lw=1.0, label="model (digital loop)")
+    ax.semilogx(f, mag, "k.", ms=3, label="measured (H1)")
+    ax.set_ylim(bottom, top)
+    ax.set_ylabel("|S| (dB)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    axc.semilogx(f, report["coherence"], "k.", ms=3)
+    axc.axhline(report.get("min_coherence", 0.9), color="tab:red", lw=0.8)
+    axc.set_ylim(0, 1.05)
+    axc.set_ylabel("coherence")
+    axc.set_xlabel("frequency (Hz)")
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _save(fig, out)

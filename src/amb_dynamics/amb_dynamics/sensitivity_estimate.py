@@ -22,6 +22,7 @@ from scipy import signal
 from .errors import InputError
 
 MIN_SEGMENTS = 4
+INJECTED_FLOOR = 1e-10  # bins with less injected power (relative to the largest) are left out
 RESOLVED_BINS = 5  # contiguous bins above half power for a resolved peak (Hann main lobe: +-2 bins)
 
 
@@ -65,6 +66,12 @@ class MeasuredSensitivity:
                 f"{self.coherence[i_all]:.2f} < {min_coherence:g}: a peak narrower than the resolution "
                 f"{self.resolution_hz:.3g} Hz (leakage) or too little injected power there; the coherent peak is a "
                 "lower bound"
+            )
+        elif lo == 0 or hi == above.size - 1:
+            edge = self.frequency_hz[0] if lo == 0 else self.frequency_hz[-1]
+            out["reason"] = (
+                f"|S| is still above half its largest value at the band edge {edge:.4g} Hz: the peak may lie "
+                "outside the measured band"
             )
         elif not inside:
             out["reason"] = (
@@ -123,7 +130,7 @@ def estimate_sensitivity(
     with np.errstate(divide="ignore", invalid="ignore"):
         H1 = Pey / Pee
         coh = np.abs(Pey) ** 2 / (Pee * Pyy)
-    keep = Pee > 0
+    keep = Pee > INJECTED_FLOOR * Pee.max()  # bins that carry the injection (a multisine: its lines)
     if band_hz is not None:
         keep &= (f >= band_hz[0]) & (f <= band_hz[1])
     if not keep.any():
