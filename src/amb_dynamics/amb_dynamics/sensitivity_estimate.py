@@ -22,7 +22,7 @@ from scipy import signal
 from .errors import InputError
 
 MIN_SEGMENTS = 4
-INJECTED_FLOOR = 1e-10  # bins with less injected power (relative to the largest) are left out
+INJECTED_FLOOR = 1e-6  # bins with less injected power (relative to the largest) are left out
 RESOLVED_BINS = 5  # contiguous bins above half power for a resolved peak (Hann main lobe: +-2 bins)
 
 
