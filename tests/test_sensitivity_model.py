@@ -148,3 +148,21 @@ def test_digital_loop_converges_to_continuous():
     cr = np.array(curve_err[:-1]) / np.array(curve_err[1:])
     assert np.all((cr > 1.7) & (cr < 2.3)), (curve_err, cr)
     assert peak_err[-1] < 0.02
+
+
+@pytest.mark.parametrize(
+    ("controller", "sets"),
+    [
+        ("continuous", ["controller.integral_gain=300", "controller.derivative_filter_hz=800"]),
+        ("sampled", ["controller.integral_gain=300", "controller.delay_samples=1", "controller.rate_hz=20000"]),
+        ("sampled", ["controller.derivative_filter_hz=1500"]),
+    ],
+)
+def test_closed_loop_modes_equal_direct_inverse(controller, sets):
+    """S from the closed loop's eigen-decomposition equals (I - P K)^-1 of the separately evaluated plant and
+    controller (batched solves), for filtered/integral PIDs and a one-sample delay."""
+    cfg = load_config(PAPER, sets)
+    plant, ctrl = loop_state_spaces(build_structure(cfg), cfg, 1000.0, controller)
+    w = 2 * np.pi * np.geomspace(1.0, 2000.0, 60)
+    direct = np.linalg.inv(np.eye(4) - plant.freqresp(w) @ ctrl.freqresp(w))
+    assert np.max(np.abs(sensitivity_matrix(plant, ctrl, w) - direct)) < 1e-8 * np.max(np.abs(direct))
