@@ -62,7 +62,8 @@ def measured_axis(resolution_hz: float = 0.5, periods: int = 6) -> dict:
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=1800)
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
-        raise RuntimeError(f"amb-rig sensitivity failed: {proc.stderr.strip().splitlines()[-1:]}")
+        errors = [ln.strip() for ln in proc.stderr.splitlines() if "error" in ln.lower()]
+        raise RuntimeError(f"amb-rig sensitivity failed: {errors[-3:] or proc.stderr.strip().splitlines()[-1:]}")
     r = json.loads(proc.stdout)
     res = {
         "resolution_hz": r["resolution_hz"],

@@ -108,11 +108,13 @@ def main_sensitivity(args) -> int:
         return EXIT_USAGE
     work = Path(tempfile.mkdtemp(prefix="amb-rig-sensitivity-"))
     bag = Path(args.keep_bag) if args.keep_bag else work / "bag"
+    keep = False
     try:
         rargs = run_args(args, bag, work / "logs")
         with contextlib.redirect_stdout(sys.stderr):  # the run's summary goes to stderr, the result to stdout
             rc = run(rargs, cfg, lock)
         if rc != 0:
+            keep = True
             print(f"amb-rig sensitivity: the run failed (exit {rc}); logs in {work / 'logs'}", file=sys.stderr)
             return EXIT_FAILED
         report = analyse(args, cfg, model, j, band, bag)
@@ -120,7 +122,8 @@ def main_sensitivity(args) -> int:
         print(f"amb-rig sensitivity: {exc}", file=sys.stderr)
         return EXIT_FAILED
     finally:
-        shutil.rmtree(work, ignore_errors=True)
+        if not keep:
+            shutil.rmtree(work, ignore_errors=True)
     print(json.dumps(report, indent=1) if args.json else text(report))
     return 0
 
