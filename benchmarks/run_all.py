@@ -21,6 +21,7 @@ BENCHMARKS = (
     "bench_recording_cost",
     "bench_monitor",
     "bench_live_cost",
+    "bench_sensitivity",
 )
 
 

@@ -6,6 +6,7 @@
     amb-bag check BAG [--dry-run] [--json]     exit 0: intact, 2: damaged (recovered unless --dry-run)
     amb-bag play BAG [--rate R] [--topics T ...] [--loop] [--clock [HZ]]
     amb-bag plot BAG --out run.png [--config rotor.yaml]
+    amb-bag sensitivity BAG --axis amb1_y [--config F] [--set K=V] [--band lo:hi] [--json] [--out S.png]
 
 User errors (missing, empty, truncated or foreign files, bad options) print one line and exit 1.
 """
@@ -79,6 +80,12 @@ def _cmd_plot(args) -> int:
     return 0
 
 
+def _cmd_sensitivity(args) -> int:
+    from .sensitivity import run_bag_sensitivity
+
+    return run_bag_sensitivity(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .record_options import add_record_arguments
 
@@ -112,6 +119,17 @@ def build_parser() -> argparse.ArgumentParser:
     plt.add_argument("--out", required=True, help="PNG file to write")
     plt.add_argument("--config", help="rotor config for the air gap (default: seed rotor)")
     plt.set_defaults(func=_cmd_plot)
+    sen = sub.add_parser("sensitivity", help="measured sensitivity S_jj of a recorded injection (ISO 14839-3)")
+    sen.add_argument("bag")
+    sen.add_argument("--axis", required=True, help="AMB axis of the injection, e.g. amb1_y")
+    sen.add_argument("--resolution", type=float, default=0.5, help="frequency resolution (Hz) = 1/segment length")
+    sen.add_argument("--settle", type=float, default=1.0, help="s after the injection's start left out (transient)")
+    sen.add_argument("--band", default=None, help="lo:hi (Hz); default: every bin the injection excites")
+    sen.add_argument("--config", help="rotor config of the run: the model of the digital loop is shown beside")
+    sen.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override of the run")
+    sen.add_argument("--json", action="store_true")
+    sen.add_argument("--out", help="PNG: measured and model |S| with the zone bands, coherence")
+    sen.set_defaults(func=_cmd_sensitivity)
     return parser
 
 

@@ -2,6 +2,7 @@
 
     amb-rig run --duration 5 --motion pitch --amplitude 0.3 --frequency 24.5 [--mode lockstep|realtime]
                 [--set key=value]... [--config F] [--param NODE:NAME=VALUE]... [--json] [--no-plant] [--bag DIR]
+    amb-rig sensitivity --axis amb1_y [--band 5:50] [--duration 20] ... (amb_bringup.sensitivity_cmd)
 
 Sequence: reserve a DDS domain (localhost unless --discovery or the environment says otherwise), start
 amb-rig's diagnostics collector, refuse to start if the domain already carries the topics this run publishes
@@ -85,6 +86,9 @@ def parser() -> argparse.ArgumentParser:
     paramfile.add_arguments(r)
     r.add_argument("--live", action="store_true", help="serve the run to Foxglove (amb-live; docs/live-view.md)")
     live.add_arguments(r, prefix="live-")
+    from .sensitivity_cmd import add_parser as add_sensitivity_parser  # ISO 14839-3 measurement (own module)
+
+    add_sensitivity_parser(sub)
     return ap
 
 
@@ -102,6 +106,10 @@ class Interrupted:
 
 def main(argv: list[str] | None = None) -> None:
     args = parser().parse_args(argv)
+    if args.command == "sensitivity":
+        from .sensitivity_cmd import main_sensitivity
+
+        sys.exit(main_sensitivity(args))
     try:  # every node's parameters, before anything starts (amb_bringup.paramfile)
         params = paramfile.prepare(args)
     except AmbError as exc:

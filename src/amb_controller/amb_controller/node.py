@@ -39,6 +39,7 @@ from amb_ros.qos import data_qos, latched_qos
 from amb_ros.runtime import run_node
 
 from .excitation import KINDS, Excitation
+from .injection_hook import InjectionHook, injection_specs
 from .realtime import on_realtime_sample, run_sample_triggered, run_timer_triggered
 
 
@@ -75,6 +76,7 @@ def specs() -> list[ParamSpec]:
         ParamSpec("safe_derivative_gain", 0.0, "kd of the safe gain set; 0 = twice the nominal kd (more damping)",
                   "A s/m", 0.0, 1e12, runtime=True),
         param_at_spec(),
+        *injection_specs(),
     ]  # fmt: skip
 
 
@@ -101,6 +103,7 @@ class ControllerNode(RigNode):
         self.sub = self.create_subscription(JointState, m.DISPLACEMENT, self.on_sample, qos, raw=True)
         if p["safe_gains_on_unstable"]:
             self.listen_unstable()
+        self.injection = InjectionHook(self)  # sensor-signal disturbance (ISO 14839-3), off by default
         self.waiter = Waiter(self, [self.sub])
         self.live = LiveParams(self, [s for s in specs() if s.runtime], self.retune)
         self.answered = self.saturated = self.lost = self.restarts = self.repeated = 0
@@ -189,6 +192,7 @@ class ControllerNode(RigNode):
         t0 = time.perf_counter()
         if self.live.pending or self.live.schedule:
             self.live.at_sample(t_ns)
+        y = self.injection.apply(t_ns, y, t)
         with np.errstate(over="ignore", invalid="ignore"):
             u = self.pid.step(y)
         if self.excitation.active:
@@ -270,6 +274,7 @@ class ControllerNode(RigNode):
             }
         )
         out.update(self.live.values())
+        out.update(self.injection.values())
         out.update(self.compute.summary("compute"))
         if self.mode == "realtime":
             out.update({"trigger": self.p["trigger"], "ticks": str(self.ticks), "missed deadlines": str(self.missed),

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from . import plots
+from .analysis_sensitivity import run_sensitivity  # noqa: F401  (the `sensitivity` verb)
 from .chart import stability_chart
 from .config import RotorConfig, load_config
 from .errors import InputError

@@ -1,4 +1,7 @@
-"""``amb-dynamics``: modes | campbell | floquet | chart | simulate.  Data to stdout (``--json``), logs to stderr."""
+"""``amb-dynamics``: modes | campbell | floquet | chart | simulate | sensitivity.
+
+Data to stdout (``--json``), logs to stderr.
+"""
 
 from __future__ import annotations
 
@@ -114,6 +117,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, default=20.0, help="s")
     p.add_argument("--steps-per-period", type=int, default=200)
     p.add_argument("--out", type=Path, default=Path("out/response.png"))
+    p = sub.add_parser("sensitivity", help="model sensitivity S_jj per AMB axis with its ISO 14839-3 zone")
+    _common(p)
+    p.add_argument("--speed-rpm", type=float, nargs="+", default=[0.0, 1000.0])
+    p.add_argument("--controller", choices=("continuous", "sampled"), default="continuous")
+    p.add_argument("--band", default="1:500", help="lo:hi (Hz), default 1:500")
+    p.add_argument("--points", type=int, default=2000, help="log-spaced frequencies in the band")
+    p.add_argument("--axis", action="append", default=None, help="only this AMB axis, e.g. amb1_y (repeatable)")
+    p.add_argument("--out", type=Path, default=None, help="PNG: Bode magnitude per axis with the zone bands")
     return ap
 
 

@@ -101,6 +101,16 @@ class BaseMotionConfig:
 
 
 @dataclass(frozen=True)
+class ISO14839Config:
+    """ISO 14839 zone boundaries [A/B, B/C, C/D] (docs/commissioning.md: sources and what is confirmed)."""
+
+    sensitivity_zone_limits: tuple[float, ...] = _f("", 1.0, default=(3.0, 4.0, 5.0), doc="peak |S| (absolute)")
+    vibration_zone_limits: tuple[float, ...] = _f("", 0.0, open_lo=True, default=(0.3, 0.4, 0.5), doc="x C_min")
+    vibration_measure: str = _f(choices=("zero_peak", "peak_to_peak"), default="zero_peak")
+    touchdown_clearance: float | None = _f("m", 0.0, open_lo=True, default=None, doc="C_min; null: no zone")
+
+
+@dataclass(frozen=True)
 class RotorConfig:
     shaft: ShaftConfig
     disks: tuple[DiskConfig, ...]
@@ -114,6 +124,7 @@ class RotorConfig:
     base_forcing: bool = _f(default=False, doc="inertial load of the base rotation (PHYSICS.md 4.7) in time runs")
     modal_cutoff: float | None = _f("rad/s", 0.0, open_lo=True, default=None)
     base_motion: BaseMotionConfig = field(default_factory=BaseMotionConfig)
+    iso14839: ISO14839Config = field(default_factory=ISO14839Config)
     source: str = field(default="<memory>", compare=False, metadata={"internal": True})
 
     @property
@@ -299,6 +310,10 @@ def _check_topology(cfg: RotorConfig, source: str) -> None:
             raise ConfigError(f"{source}: bearing node {node} does not exist (nodes 1..{n})")
     if len(set(nodes)) != len(nodes):
         raise ConfigError(f"{source}: 'bearings.nodes' must be distinct")
+    for key in ("sensitivity_zone_limits", "vibration_zone_limits"):
+        lim = getattr(cfg.iso14839, key)
+        if len(lim) != 3 or any(lim[i + 1] <= lim[i] for i in range(len(lim) - 1)):
+            raise ConfigError(f"{source}: 'iso14839.{key}' must be three ascending numbers [A/B, B/C, C/D]")
     bm = cfg.base_motion
     if bm.kind == "combined" and not bm.harmonics:
         raise ConfigError(f"{source}: 'base_motion.harmonics' must list at least one harmonic for kind combined")

@@ -1,0 +1,97 @@
+"""ISO 14839 evaluation zones: stability margin (part 3, peak sensitivity) and shaft vibration (part 2, vs C_min).
+
+Both grade a number against three ascending boundaries [A/B, B/C, C/D]: a value on a boundary belongs to the
+zone below it.  The boundaries are config keys (``iso14839``); their defaults are the commonly cited values
+(docs/commissioning.md says where they come from and what could not be confirmed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+
+ZONES = ("A", "B", "C", "D")
+
+
+def zone_of(value: float, limits) -> str:
+    """Zone A-D of ``value`` against ascending boundaries ``limits`` = [A/B, B/C, C/D]."""
+    limits = [float(x) for x in limits]
+    if len(limits) != 3 or any(np.diff(limits) <= 0):
+        raise InputError(f"zone limits must be three ascending numbers [A/B, B/C, C/D] (got {limits})")
+    if not np.isfinite(value):
+        raise InputError(f"cannot grade a non-finite value ({value})")
+    for name, limit in zip(ZONES, limits, strict=False):
+        if value <= limit:
+            return name
+    return "D"
+
+
+def sensitivity_zone(peak_abs: float, limits_abs) -> str:
+    """ISO 14839-3 zone of a peak |S| (absolute, not dB)."""
+    return zone_of(peak_abs, limits_abs)
+
+
+def db(x: float) -> float:
+    """20 log10 x (dB)."""
+    return float(20.0 * np.log10(x))
+
+
+@dataclass(frozen=True)
+class VibrationZone:
+    """ISO 14839-2 grade of one axis: displacement (m) and its ratio to C_min, or why there is none."""
+
+    axis: str
+    displacement_m: float
+    measure: str  # zero_peak | peak_to_peak
+    ratio: float | None
+    zone: str | None
+    reason: str | None = None
+
+    def to_dict(self) -> dict:
+        return {
+            "displacement_m": self.displacement_m,
+            "measure": self.measure,
+            "ratio_to_c_min": self.ratio,
+            "zone": self.zone,
+            **({"reason": self.reason} if self.reason else {}),
+        }
+
+
+def displacement_measure(y: np.ndarray, measure: str) -> float:
+    """Zero-to-peak (max |y|, from the bearing centre) or peak-to-peak (max y - min y) of samples y (m)."""
+    y = np.asarray(y, dtype=float)
+    if y.size == 0 or not np.all(np.isfinite(y)):
+        raise InputError("vibration zone: the displacement samples are empty or not finite")
+    if measure == "zero_peak":
+        return float(np.abs(y).max())
+    if measure == "peak_to_peak":
+        return float(y.max() - y.min())
+    raise InputError(f"vibration measure must be zero_peak or peak_to_peak (got {measure!r})")
+
+
+def vibration_zones(
+    displacements: dict[str, np.ndarray],
+    c_min: float | None,
+    limits_ratio,
+    measure: str = "zero_peak",
+) -> dict[str, VibrationZone]:
+    """ISO 14839-2 zone per axis: the displacement measure of each axis's samples (m) against limits x C_min.
+
+    With ``c_min`` None there is no zone, and each entry says why in one line.
+    """
+    out = {}
+    for axis, y in displacements.items():
+        d = displacement_measure(y, measure)
+        if c_min is None:
+            out[axis] = VibrationZone(
+                axis, d, measure, None, None, "no zone: iso14839.touchdown_clearance (C_min) is not set"
+            )
+            continue
+        if not c_min > 0:
+            raise InputError(f"iso14839.touchdown_clearance must be > 0 m (got {c_min})")
+        ratio = d / c_min
+        out[axis] = VibrationZone(axis, d, measure, ratio, zone_of(ratio, limits_ratio))
+    return out
