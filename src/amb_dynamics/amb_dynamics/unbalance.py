@@ -100,7 +100,7 @@ class SynchronousResponse:
     lightly damped mode that unbalance excites has Re(lambda) = its critical speed (rad/s).
     """
 
-    REFINE = 2
+    REFINE = 1
 
     def __init__(self, model: StructuralModel, loop: ClosedLoop, ub: Unbalance):
         if not ub.any:
@@ -108,12 +108,14 @@ class SynchronousResponse:
                 "the config has no unbalance: set disks[i].unbalance or balance_grade (with max_speed_rpm)"
             )
         self.model, self.loop = model, loop
-        self.A0 = loop.A0
+        self.A0 = loop.A0.astype(complex)
         self.E = 1j * np.eye(loop.N) - loop.A_terms.get("Phi", np.zeros_like(loop.A0))
+        self.EA_T = np.hstack([self.E.T, self.A0.T])  # one product gives x E^T and x A0^T
         self.b = input_matrix(model, loop) @ ub.amplitude_fe(model.fe.n)
         self.lam, self.V = sla.eig(self.A0, self.E)
         self.Vinv_Einv = np.linalg.solve(self.E @ self.V, np.eye(loop.N))  # (E V)^-1
-        self.residue = self.V * (self.Vinv_Einv @ self.b)  # column j: V_j (V^-1 E^-1 b)_j
+        self.coef = self.Vinv_Einv @ self.b
+        self.residue = self.V * self.coef  # column j: V_j (V^-1 E^-1 b)_j
 
     def _apply_inverse(self, w: np.ndarray, R: np.ndarray) -> np.ndarray:
         """L(w_k)^-1 R_k for rows R_k, (k, N)."""
@@ -122,10 +124,11 @@ class SynchronousResponse:
     def states(self, speeds_rpm) -> np.ndarray:
         """Complex state amplitudes x^ (k, N) per unit of the configured unbalance."""
         w = np.asarray(speeds_rpm, dtype=float).ravel() * np.pi / 30.0
-        rhs = (w**2)[:, None] * self.b[None, :]
-        x = self._apply_inverse(w, rhs)
+        N = self.loop.N
+        x = ((w**2)[:, None] * self.coef[None, :] / (w[:, None] - self.lam[None, :])) @ self.V.T
         for _ in range(self.REFINE):
-            res = rhs - (w[:, None] * (x @ self.E.T) - x @ self.A0.T)
+            xEA = x @ self.EA_T
+            res = (w**2)[:, None] * self.b[None, :] - w[:, None] * xEA[:, :N] + xEA[:, N:]
             x = x + self._apply_inverse(w, res)
         return x
 
