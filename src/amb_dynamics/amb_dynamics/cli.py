@@ -1,4 +1,4 @@
-"""``amb-dynamics``: modes | campbell | floquet | chart | simulate | sensitivity.
+"""``amb-dynamics``: modes | campbell | floquet | chart | simulate | sensitivity | unbalance.
 
 Data to stdout (``--json``), logs to stderr.
 """
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import analysis
+from . import analysis, unbalance_report
 from .errors import AmbError
 
 
@@ -125,14 +125,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--points", type=int, default=2000, help="log-spaced frequencies in the band")
     p.add_argument("--axis", action="append", default=None, help="only this AMB axis, e.g. amb1_y (repeatable)")
     p.add_argument("--out", type=Path, default=None, help="PNG: Bode magnitude per axis with the zone bands")
+    unbalance_report.add_parser(sub, _common)
     return ap
+
+
+RUNNERS = {"unbalance": unbalance_report.run_unbalance}  # verbs outside analysis.py
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     # the chart writes its own JSON file; --json there also prints the summary
     try:
-        result, text = getattr(analysis, f"run_{args.verb}")(args)
+        result, text = RUNNERS.get(args.verb, getattr(analysis, f"run_{args.verb}", None))(args)
     except AmbError as exc:
         print(f"amb-dynamics {args.verb}: error: {exc}", file=sys.stderr)
         return 2

@@ -46,6 +46,8 @@ class PlantStepper:
         self.Ap0 = np.zeros((2 * n, 2 * n))
         self.Ap0[:n, n:] = np.eye(n)
         self.Ap0[n:, :n] = -Minv @ Kp
+        if "D_s" in model.mats:  # structural damping of the shaft (damping.py)
+            self.Ap0[n:, n:] = -Minv @ model.mats["D_s"]
         terms = [
             (COEFFICIENTS.index(name), Kj, Dj)
             for name, (Kj, Dj) in parametric_matrices(model, cfg).items()
