@@ -1,6 +1,6 @@
 """Stability monitor: Monte Carlo detection latency and false alarms, and the estimator's cost per update.
 
-Offline Monte Carlo with the core's lockstep-equivalent loop (``estimate_sim.SnapshotSimulator``, 5 kHz, seed
+Offline Monte Carlo with the core's lockstep-equivalent loop (``estimator.sim.SnapshotSimulator``, 5 kHz, seed
 rotor, modal cutoff 5000 rad/s).  Every run starts at a random phase of the base motion from a random knock (a
 displaced rotor at rest), with random excitation currents (0.005 A rms per axis and sample, the node suite's
 excitation injection) and 0.1 % measurement noise (of each channel's RMS); the monitor runs with its default
@@ -35,9 +35,9 @@ from pathlib import Path
 import numpy as np
 
 from amb_dynamics.config import load_config
-from amb_dynamics.estimate import fit_period_map
-from amb_dynamics.estimate_sim import SnapshotSimulator, add_measurement_noise
-from amb_dynamics.estimate_stream import EstimatorConfig, StreamingEstimator
+from amb_dynamics.estimator.fit import fit_period_map
+from amb_dynamics.estimator.sim import SnapshotSimulator, add_measurement_noise
+from amb_dynamics.estimator.stream import EstimatorConfig, StreamingEstimator
 from amb_dynamics.fe import dof_index
 from amb_dynamics.floquet import sampled_floquet
 from amb_dynamics.motion import BaseMotion, Harmonic

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from amb_dynamics.errors import InputError
-from amb_dynamics.estimate import (
+from amb_dynamics.estimator.fit import (
     COLLECTING,
     INSUFFICIENT,
     MARGINAL,
@@ -23,8 +23,8 @@ from amb_dynamics.estimate import (
     fit_period_map,
     forcing_regressors,
 )
-from amb_dynamics.estimate_period import estimate_base_period
-from amb_dynamics.estimate_stream import EstimatorConfig, StreamingEstimator, estimate_series
+from amb_dynamics.estimator.period import estimate_base_period
+from amb_dynamics.estimator.stream import EstimatorConfig, StreamingEstimator, estimate_series
 from amb_dynamics.motion import BaseMotion, Harmonic
 
 MU = np.array([1.03 * np.exp(0.7j), 1.03 * np.exp(-0.7j), 0.9 * np.exp(2.1j), 0.9 * np.exp(-2.1j), 0.5, -0.3])

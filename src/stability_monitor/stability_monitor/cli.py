@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 from amb_dynamics.errors import AmbError
-from amb_dynamics.estimate import METHODS
+from amb_dynamics.estimator.fit import METHODS
 
 from .pipeline import FORCING_CHOICES, MonitorSettings
 

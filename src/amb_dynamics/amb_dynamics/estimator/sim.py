@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .amb import pid_update_matrices
-from .errors import InputError
-from .motion import BaseMotion
-from .sampled import SampledLoop, SampledRun
+from ..amb import pid_update_matrices
+from ..errors import InputError
+from ..motion import BaseMotion
+from ..sampled import SampledLoop, SampledRun
 
 PERIOD_MATCH_TOL = 1e-9  # relative: T/Ts must be this close to an integer for the cyclic step maps
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 REPEAT_TOL = 1e-3  # relative RMS mismatch for "Omega repeats after this lag"
 ZERO_RATE = 1e-9  # components below this fraction of the largest are zero (no roll, pure roll)
