@@ -5,8 +5,12 @@ Ratios are measured side by side in this run (machines here are noisy); run with
 
 from __future__ import annotations
 
+import os
 import time
 
+from amb_dynamics.threads import single_thread_env
+
+os.environ.update(single_thread_env())  # one BLAS thread, set before numpy loads (amb_dynamics/threads.py)
 import numpy as np
 
 from amb_dynamics.chart import stability_chart

@@ -26,12 +26,16 @@ refinement runs) and the lockstep loop's steps/s of amb-rig with its own monitor
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+from amb_dynamics.threads import single_thread_env
+
+os.environ.update(single_thread_env())  # one BLAS thread, set before numpy loads (amb_dynamics/threads.py)
 import numpy as np
 
 from amb_dynamics.config import load_config

@@ -11,7 +11,10 @@ from pathlib import Path
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # DDS stays on this machine
 sys.path.insert(0, str(Path(__file__).parent))
 
+from amb_dynamics.threads import single_thread_env  # imports no numpy
 from amb_ros.env import ensure_localhost_dds
+
+os.environ.update(single_thread_env())  # one BLAS thread for every benchmark and its children
 
 BENCHMARKS = ("bench_dynamics", "bench_lockstep", "bench_bag", "bench_recording_cost", "bench_monitor")
 

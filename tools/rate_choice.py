@@ -7,6 +7,11 @@ Sampled-data Floquet analysis of the digital PD loop at rest (PHYSICS.md 3.3) fo
 
 from __future__ import annotations
 
+import os
+
+from amb_dynamics.threads import single_thread_env
+
+os.environ.update(single_thread_env())  # one BLAS thread, set before numpy loads (amb_dynamics/threads.py)
 import numpy as np
 
 from amb_dynamics.config import load_config

@@ -7,14 +7,14 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
-from . import analysis
 from .errors import AmbError
+from .threads import limit_blas_threads
 
 
-def grid(text: str) -> np.ndarray:
-    """'lo:hi:n' -> linspace(lo, hi, n); 'a,b,c' or 'a' -> values."""
+def grid(text: str):
+    """'lo:hi:n' -> linspace(lo, hi, n); 'a,b,c' or 'a' -> values (np.ndarray)."""
+    import numpy as np  # not at module level: main() limits the BLAS threads before numpy loads
+
     try:
         if ":" in text:
             lo, hi, n = text.split(":")
@@ -118,6 +118,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    limit_blas_threads()  # first: BLAS reads its thread count when numpy loads (amb_dynamics/threads.py)
+    from . import analysis  # imports numpy
+
     args = build_parser().parse_args(argv)
     # the chart writes its own JSON file; --json there also prints the summary
     try:
