@@ -35,7 +35,7 @@ BIN = Path(sys.executable).parent
 
 
 def lockstep_mix() -> list[tuple[str, str, bytes]]:
-    """One lockstep step of the DESIGN.md topics as (topic, type, CDR bytes); sizes as the nodes publish them."""
+    """One lockstep step of the docs/topics.md topics as (topic, type, CDR bytes); sizes as the nodes publish them."""
     from geometry_msgs.msg import Vector3Stamped
     from rclpy.serialization import serialize_message
     from rosgraph_msgs.msg import Clock

@@ -1,6 +1,6 @@
 """Reproduce docs/paper-comparison.md's figures and numbers: `.venv/bin/python tools/paper_comparison.py`.
 
-The seed paper's three claims (PHYSICS.md 9) against this software's `seed` and `derived` formulations.
+The seed paper's three claims (docs/physics.md#formulations) against this software's `seed` and `derived` formulations.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """How the default controller rate and plant model were chosen: `.venv/bin/python tools/rate_choice.py`.
 
-Sampled-data Floquet analysis of the digital PD loop at rest (PHYSICS.md 3.3) for several plant models
+Sampled-data Floquet analysis of the digital PD loop at rest (docs/physics.md#modal-cutoff) for several plant models
 (modal cutoffs) and rates: max|mu| per sample, and the largest multiplier among the 'digital' modes
 (|arg mu|/Ts > 2000 rad/s, the mesh modes that sampling folds near Nyquist).
 """

@@ -1,4 +1,4 @@
-"""DDS hygiene: every process of the project keeps discovery on localhost (DESIGN.md section 5).
+"""DDS hygiene: every process of the project keeps discovery on localhost (docs/nodes.md).
 
 This module imports no ROS code, so it can run before ``rclpy.init``.  ``ensure_localhost_dds()`` is the
 first call of every entry point that may start DDS; ``reserve_domain_id()`` gives a test session or an

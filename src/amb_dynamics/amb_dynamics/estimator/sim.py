@@ -6,7 +6,7 @@ K closed-loop maps F_k = ``loop.step_map`` once and then steps
 
     X_{k+1} = F_{k mod K} X_k + [g_k + Gamma_k e_k; 0]
 
-with X = [q; q'; controller memory] (PHYSICS.md 3.3), g_k the base-motion forcing and e_k an optional random
+with X = [q; q'; controller memory] (docs/physics.md#sampled), g_k the base-motion forcing and e_k an optional random
 current added to the controller output (the node suite's excitation injection, or amplifier noise).  It is
 the same closed loop as ``SampledLoop.simulate`` (tests compare them) plus the excitation, and it can start
 on the forced periodic orbit (a fully decayed rotor).  Measurement noise is added to the snapshots only.
