@@ -271,5 +271,5 @@ def run_simulate(args):
 def _write_json(path: Path, data: dict) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".part")
-    tmp.write_text(json.dumps(data))
+    tmp.write_text(json.dumps({"schema_version": 1, **data}))
     tmp.replace(path)

@@ -129,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"amb-dynamics {args.verb}: error: {exc}", file=sys.stderr)
         return 2
     if args.json:
-        json.dump(result, sys.stdout, indent=1)
+        json.dump({"schema_version": 1, **result}, sys.stdout, indent=1)
         print()
     else:
         print(text)
