@@ -16,7 +16,8 @@ import threading
 import time
 
 import pytest
-from test_rig_lockstep import run_rig
+
+from helpers import run_rig
 
 pytestmark = pytest.mark.ros
 
