@@ -2,6 +2,7 @@
 
 * DDS: :class:`DdsRecorder` records topics in the test process; :func:`run_rig` runs ``amb-rig run --json`` and
   :func:`rig_json` reads its summary.
+* Monitor: :func:`model_rho`, the sampled-data model's max|mu| of a pitch run of the seed rotor.
 * Estimator: :func:`synthetic` builds period-stacked snapshots with known multipliers ``MU``; :func:`matched`
   measures how far identified multipliers are from expected ones.
 
@@ -15,6 +16,7 @@ import threading
 
 import numpy as np
 
+from amb_dynamics import BaseMotion, SampledLoop, build_structure, load_config, sampled_floquet
 from amb_dynamics.estimator.mapfit import forcing_regressors
 from procs import spawn
 
@@ -67,6 +69,17 @@ def run_rig(tmp_path, venv_bin, args, timeout=180.0):
         code = proc.wait(timeout)
         text = proc.text()
     return code, rig_json(text), text
+
+
+# ---- the monitor's truth: the sampled-data model --------------------------------------------------------------
+def model_rho(amplitude: float, T: float) -> float:
+    """max|mu| of the sampled-data model of a pitch run of the seed rotor without current limit.
+
+    The digital loop's monodromy over T = N Ts (``sampled_floquet``), the truth the monitor's estimate must meet.
+    """
+    cfg = load_config(None, ["controller.current_limit=1e9"])
+    motion = BaseMotion.single("pitch", amplitude, np.pi / T)
+    return sampled_floquet(SampledLoop(build_structure(cfg), cfg, forcing=False), motion, T).max_abs
 
 
 # ---- the estimator on synthetic data (moved from test_estimate_core.py) ----------------------------------------

@@ -7,7 +7,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from amb_dynamics import BaseMotion, SampledLoop, build_structure, load_config, sampled_floquet
+from helpers import model_rho
 
 pytestmark = pytest.mark.ros
 
@@ -23,13 +23,6 @@ def rig(venv_bin, tmp_path, amplitude, N, periods):
            "--param", "monitor:input=displacement", *LINEAR]  # fmt: skip
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=400)
     return proc, T
-
-
-def model_rho(amplitude: float, T: float) -> float:
-    """max|mu| of the sampled-data model of the run (the digital loop's monodromy over T = N Ts)."""
-    cfg = load_config(None, ["controller.current_limit=1e9"])
-    motion = BaseMotion.single("pitch", amplitude, np.pi / T)
-    return sampled_floquet(SampledLoop(build_structure(cfg), cfg, forcing=False), motion, T).max_abs
 
 
 def test_unstable_verdict_in_the_summary(venv_bin, tmp_path):
