@@ -30,6 +30,8 @@ import sys
 import time
 from pathlib import Path
 
+from report import record, record_ratio
+
 BIN = Path(sys.executable).parent
 GOAL_STEPS_PER_S = 2000.0
 GOAL_P99_US = 100.0
@@ -206,6 +208,13 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 2) -> di
          f"{sample['max_us']:.0f}", f"update-period error p50/p99/max (us; sample clock + DDS jitter); latency p99 "
          f"{sample['latency_p99_us']:.0f} us; {sample['missed_deadlines']} missed deadlines"),
     ]  # fmt: skip
+    record("lockstep, 3 node processes, normal scheduling", result["lockstep_runs"], "steps/s", goal=">= 2,000")
+    record("lockstep, 3 node processes, --rt-priority 20", result["lockstep_fifo_runs"], "steps/s", goal=">= 2,000")
+    record("bare rclpy ping-pong, before and after", [pp1, pp2], "round trips/s")
+    record_ratio("lockstep (normal) / ping-pong", result["lockstep_runs"], [base] * len(result["lockstep_runs"]))
+    record("realtime 1 kHz timer period error p99, controller", timer["p99_us"], "us", goal="< 100")
+    record("realtime 1 kHz timer period error p99, plant", timer["plant_p99_us"], "us", goal="< 100")
+    record("realtime 1 kHz sample-triggered controller, update-period error p99", sample["p99_us"], "us")
     width = max(len(r[0]) for r in rows)
     print("bench_lockstep")
     for name, value, note in rows:

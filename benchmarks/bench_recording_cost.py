@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 from bench_bag import BIN, EVERY
+from report import record
 
 RIG_DURATION = 2.0  # simulated s per lockstep run (10,000 steps at 5 kHz)
 RIG_PAIRS = 5  # alternating runs without / with --bag (and beside each control)
@@ -219,6 +220,14 @@ def main() -> dict:
           f"{stalls['without']}, with {stalls['with']} of {len(waits['with'])})")  # fmt: skip
     for line in cost["failed_runs"]:
         print(f"  FAILED run (its pair left out): {line}")
+    pct = [100 * c for c in cost["pair_costs"]]
+    record("recording cost: lockstep steps/s lost with --bag, back-to-back pairs", pct, "%", goal="< 20",
+           note=f"lost {cost['lost']} messages")  # fmt: skip
+    record("  control: beside a bare raw reader of the same topics", [100 * c for c in cost["bare_reader_costs"]], "%")
+    record(f"  control: beside a busy loop of {100 * BURN_DUTY:.0f} % of one core, no DDS",
+           [100 * c for c in cost["busy_loop_costs"]], "%")  # fmt: skip
+    record("lockstep steps/s without --bag (the pairs above)", cost["runs_without"], "steps/s")
+    record("lockstep steps/s with --bag (the pairs above)", cost["runs_with"], "steps/s")
     return cost
 
 

@@ -1,4 +1,4 @@
-"""Shared helpers of the physics verification tests (PHYSICS.md section 8).
+"""Shared helpers of the physics verification tests (docs/physics.md#checks).
 
 Generic numerics (set matching, companion forms, a validation ODE solver, config loading) and the independent
 nonlinear Newton-Euler disk of T10; every quantity under test comes from the core's production code paths.
@@ -14,7 +14,7 @@ from scipy.optimize import linear_sum_assignment
 
 from amb_dynamics import config, structure, system
 
-# Parameter set P0 of PHYSICS.md 8.1
+# The rigid disk of docs/physics.md#checks (T1-T10)
 P0 = {"m": 1.0, "Id": 1.0, "Ip": 1.5, "k": 4.0, "kt": 9.0}
 # State indices of the one-node model, x = [v, w, ty, tz, v', w', ty', tz']
 TRANSLATION = [0, 1, 4, 5]
@@ -44,7 +44,7 @@ def even_quartic_roots(c4: float, c2: float, c0: float) -> np.ndarray:
 
 
 def p0_stiffness(k: float = P0["k"], kt: float = P0["kt"], kc: float = 0.0) -> np.ndarray:
-    """K_B of PHYSICS.md 8.1 on [v, w, ty, tz]."""
+    """K_B of the rigid disk (docs/physics.md#checks) on [v, w, ty, tz]."""
     return np.array([[k, 0, 0, kc], [0, k, -kc, 0], [0, -kc, kt, 0], [kc, 0, 0, kt]], dtype=float)
 
 
@@ -85,7 +85,7 @@ def off_block(A: np.ndarray, idx: list[int]) -> float:
 
 
 def dop853_monodromy(A_of_t, N: int, T: float, rtol: float = 1e-10, atol: float = 1e-12) -> np.ndarray:
-    """Validation monodromy: DOP853 on the matrix ODE X' = A(t) X, X(0) = I (PHYSICS.md 6)."""
+    """Validation monodromy: DOP853 on the matrix ODE X' = A(t) X, X(0) = I (docs/physics.md#floquet)."""
 
     def rhs(t, x):
         return (A_of_t(t) @ x.reshape(N, N)).ravel()
@@ -96,7 +96,7 @@ def dop853_monodromy(A_of_t, N: int, T: float, rtol: float = 1e-10, atol: float 
 
 
 def newton_euler_tilt(x, Om, dOm, spin, Id, Ip, kt):
-    """Nonlinear Newton-Euler disk on a tilt spring kt in the moving base (PHYSICS.md 8.1 T10).
+    """Nonlinear Newton-Euler disk on a tilt spring kt in the moving base (docs/physics.md#checks, T10).
 
     x = (ty, tz, ty', tz') (rad, rad/s); Om, dOm (3,) base rates; spin = phi_dot.  Returns x' (4,).
     """

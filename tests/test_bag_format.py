@@ -175,7 +175,7 @@ def test_plot_attitude_follows_the_project_axes(angles):
     from amb_bag.plot import euler_from_quaternion
 
     roll, pitch, yaw = angles
-    # PHYSICS.md section 5: R = Ry(yaw) Rz(pitch) Rx(roll), intrinsic; scipy builds it independently
+    # docs/physics.md#base-motion: R = Ry(yaw) Rz(pitch) Rx(roll), intrinsic; scipy builds it independently
     x, y, z, w = Rotation.from_euler("YZX", [yaw, pitch, roll]).as_quat()
     assert euler_from_quaternion(x, y, z, w) == pytest.approx((roll, pitch, yaw), abs=1e-12)
 

@@ -1,6 +1,6 @@
 """Recording over DDS (spawned processes, localhost only): completeness, loss accounting, crash recovery, replay.
 
-The test publisher (tests/bagtools/publisher.py) publishes the DESIGN.md topic mix as raw CDR bytes and logs
+The test publisher (tests/bagtools/publisher.py) publishes the docs/topics.md topic mix as raw CDR bytes and logs
 exactly what it sent; the recorder must hold every message, byte for byte, and independent readers (rosbags,
 mcap_ros2) must decode the values the publisher generated.
 """

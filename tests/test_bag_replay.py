@@ -208,7 +208,7 @@ def test_replay_into_monitor_equals_live_run(listen, venv_bin, tmp_path):
 def stream():
     """Base rates and full-state samples of the unstable case (lockstep-equivalent simulation, no DDS)."""
     from amb_dynamics.config import load_config
-    from amb_dynamics.estimate_sim import SnapshotSimulator
+    from amb_dynamics.estimator.sim import SnapshotSimulator
     from amb_dynamics.motion import BaseMotion
     from amb_dynamics.sampled import SampledLoop
     from amb_dynamics.structure import build_structure

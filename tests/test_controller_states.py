@@ -1,6 +1,6 @@
 """The continuous PID's extra states (integral, derivative filter) against an independent interconnection.
 
-The closed loop of PHYSICS.md 3.2 is rebuilt here from the open-loop plant and the controller's transfer function
+The loop of docs/physics.md#controller is rebuilt here from the open-loop plant and the controller's transfer function
 C(s) = kp + kI/s + kd s/(1 + s/wf) (scipy.signal.tf2ss, one copy per AMB axis) closed by i = -C(s) y: its
 eigenvalues must equal those of amb_dynamics.system.closed_loop.
 """

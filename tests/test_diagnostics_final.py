@@ -16,9 +16,9 @@ import time
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
-from test_rig_lockstep import DdsRecorder
 
 from amb_ros.env import child_env
+from helpers import DdsRecorder
 
 REPORTER = """
 import json, sys, time

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from amb_dynamics.errors import InputError
-from amb_dynamics.estimate import (
+from amb_dynamics.estimator.fit import (
     COLLECTING,
     INSUFFICIENT,
     MARGINAL,
@@ -21,43 +21,11 @@ from amb_dynamics.estimate import (
     MapFit,
     VerdictPolicy,
     fit_period_map,
-    forcing_regressors,
 )
-from amb_dynamics.estimate_period import estimate_base_period
-from amb_dynamics.estimate_stream import EstimatorConfig, StreamingEstimator, estimate_series
+from amb_dynamics.estimator.period import estimate_base_period
+from amb_dynamics.estimator.stream import EstimatorConfig, StreamingEstimator, estimate_series
 from amb_dynamics.motion import BaseMotion, Harmonic
-
-MU = np.array([1.03 * np.exp(0.7j), 1.03 * np.exp(-0.7j), 0.9 * np.exp(2.1j), 0.9 * np.exp(-2.1j), 0.5, -0.3])
-
-
-def synthetic(mu, cols, m=60, forcing="alternating", seed=0, noise=0.0):
-    """Columns z_0..z_{cols-1} of z_{j+1} = A z_j + d_j observed through a random (m x len(mu)) map."""
-    rng = np.random.default_rng(seed)
-    n = len(mu)
-    V = rng.standard_normal((n, n)) + 0j
-    # complex-conjugate pairs get conjugate eigenvectors so that A is real
-    k = 0
-    while k < n:
-        if abs(mu[k].imag) > 0:
-            v = rng.standard_normal(n) + 1j * rng.standard_normal(n)
-            V[:, k], V[:, k + 1] = v, v.conj()
-            k += 2
-        else:
-            k += 1
-    A = np.real(V @ np.diag(mu) @ np.linalg.inv(V))
-    O = rng.standard_normal((m, n))
-    E = forcing_regressors(forcing, cols)
-    D = rng.standard_normal((n, E.shape[0]))
-    x = rng.standard_normal(n)
-    Z = np.empty((m, cols))
-    for j in range(cols):
-        Z[:, j] = O @ x
-        x = A @ x + D @ E[:, j]
-    return Z + noise * rng.standard_normal(Z.shape)
-
-
-def matched(got, expected):
-    return max(np.min(np.abs(got - z)) for z in expected)
+from helpers import MU, matched, synthetic
 
 
 @pytest.mark.parametrize("forcing", ["none", "constant", "alternating", 3])

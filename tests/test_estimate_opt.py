@@ -12,10 +12,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from test_estimate_core import MU, matched, synthetic
 
-from amb_dynamics.estimate import fit_period_map, plateau_floor
-from amb_dynamics.estimate_opt import refine_fit
+from amb_dynamics.estimator.fit import fit_period_map, plateau_floor
+from amb_dynamics.estimator.refine import refine_fit
+from helpers import MU, matched, synthetic
 
 
 @pytest.mark.parametrize("forcing", ["none", "alternating", 3])

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from amb_dynamics.config import load_config, paper_config_path
-from amb_dynamics.estimate import COLLECTING, INSUFFICIENT, UNSTABLE
-from amb_dynamics.estimate_sim import SnapshotSimulator, add_measurement_noise
-from amb_dynamics.estimate_stream import EstimatorConfig, estimate_series
+from amb_dynamics.estimator.fit import COLLECTING, INSUFFICIENT, UNSTABLE
+from amb_dynamics.estimator.sim import SnapshotSimulator, add_measurement_noise
+from amb_dynamics.estimator.stream import EstimatorConfig, estimate_series
 from amb_dynamics.fe import dof_index
 from amb_dynamics.floquet import sampled_floquet
 from amb_dynamics.motion import BaseMotion

@@ -21,7 +21,7 @@ def seed_system(*overrides):
 
 
 # (kind, formulation, A, omega, expected verdict): one stable and one unstable point per axis.  Derived roll
-# with base-fixed AMB damping is never unstable (PHYSICS.md 9), so roll's unstable point is the seed formulation's.
+# with base-fixed AMB damping is never unstable (docs/physics.md#formulations): roll's unstable point is seed's.
 CASES = [
     ("pitch", "derived", 0.3, 15.0, "stable"),
     ("pitch", "derived", 0.5, 22.1, "unstable"),
@@ -103,7 +103,7 @@ def test_default_rate_stable_at_rest_with_margin():
 
 
 def test_full_model_digital_artefact_of_physics_3_3():
-    """PHYSICS.md 3.3: the full 6-element model with a 10 kHz PD is unstable through its mesh modes."""
+    """docs/physics.md#modal-cutoff: the full 6-element model with a 10 kHz PD is unstable through its mesh modes."""
     cfg, model, _ = seed_system("modal_cutoff=null")
     for Ts, unstable in ((1e-4, True), (5e-5, True), (2e-5, False)):
         res = sampled_floquet(SampledLoop(model, cfg, Ts=Ts, forcing=False), BaseMotion(), None)

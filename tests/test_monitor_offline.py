@@ -23,8 +23,8 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from amb_dynamics.config import load_config
 from amb_dynamics.errors import InputError
-from amb_dynamics.estimate_sim import SnapshotSimulator
-from amb_dynamics.estimate_stream import EstimatorConfig, estimate_series
+from amb_dynamics.estimator.sim import SnapshotSimulator
+from amb_dynamics.estimator.stream import EstimatorConfig, estimate_series
 from amb_dynamics.floquet import sampled_floquet
 from amb_dynamics.motion import BaseMotion
 from amb_dynamics.sampled import SampledLoop

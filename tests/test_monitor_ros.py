@@ -22,6 +22,7 @@ import time
 import numpy as np
 import pytest
 
+from helpers import model_rho
 from procs import spawn
 
 pytestmark = pytest.mark.ros
@@ -125,16 +126,16 @@ def test_unstable_run_raises_the_flag(listener, venv_bin, tmp_path):
     assert diag["samples lost"] == "0" and diag["samples"] == str(13 * 718 + 1), diag  # it kept up
     assert float(diag["flag raised at (s)"]) <= DETECT_PERIODS * T, diag
     assert float(diag["period (s)"]) == pytest.approx(T, rel=1e-12), diag  # from /base/imu, snapped to 718 Ts
-    assert float(diag["rho"]) == pytest.approx(1.0617233551, abs=1e-6), diag  # the sampled-data model value
+    assert float(diag["rho"]) == pytest.approx(model_rho(0.6, T), abs=1e-6), diag  # the sampled-data model value
     assert diag["verdict"] == "unstable", diag
 
 
 def test_stable_run_never_raises_the_flag(listener, venv_bin, tmp_path):
-    diag, _ = run_case(listener, venv_bin, tmp_path, 0.3, 641, 12, sensor_only=False)
+    diag, T = run_case(listener, venv_bin, tmp_path, 0.3, 641, 12, sensor_only=False)
     assert listener["flags"] and not any(listener["flags"])
     assert diag["samples lost"] == "0" and diag["samples"] == str(12 * 641 + 1), diag
     assert diag["verdict"] in ("stable", "marginal") and diag["unstable"] == "false"
-    assert float(diag["rho"]) == pytest.approx(0.9987913219, abs=0.01)
+    assert float(diag["rho"]) == pytest.approx(model_rho(0.3, T), abs=0.01)
 
 
 @pytest.mark.parametrize(

@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, JointState
-from test_rig_lockstep import DdsRecorder
 
 from amb_dynamics.amb import DiscretePID, DiscretePIDCoefficients
 from amb_dynamics.config import load_config
 from amb_dynamics.structure import AMBGains
 from amb_ros import messages as m
+from helpers import DdsRecorder
 from procs import spawn
 
 CHANNELS = ("amb1_y", "amb1_z", "amb5_y", "amb5_z")

@@ -1,4 +1,4 @@
-"""PHYSICS.md 8.2: the FE rotor (seed geometry unless stated): T11-T15, T17, T21, T22.
+"""docs/physics.md#checks: the FE rotor (seed geometry unless stated): T11-T15, T17, T21, T22.
 
 Matrices come from ``fe.element_matrices`` / ``fe.assemble`` / ``structure.build_structure`` and
 ``system.closed_loop``; expected values are the closed forms and beam-theory results of the specification.
@@ -36,7 +36,7 @@ def test_seed_section_and_disk_properties_T11():
 
 # ---- T11: Gauss quadrature vs the closed forms of 4.2 --------------------------------------------------------
 def _closed_forms(sec: fe.Section) -> dict[str, np.ndarray]:
-    """The 8x8 element matrices from the v-plane closed forms and the block table of PHYSICS.md 4.2/4.5."""
+    """The 8x8 element matrices from the v-plane closed forms and the block table of docs/physics.md#fe."""
     Le, ra, i_d, i_p, EI = sec.length, sec.rho_A, sec.i_d, sec.i_p, sec.EI
     Mt_v = (
         ra
@@ -266,7 +266,7 @@ def test_periods_T21(kind, period_factor, formulation):
     loop = system.closed_loop(structure.build_structure(cfg), cfg)
     A_amp, w = 0.3, 2.5
     ps = system.periodic_system(loop, motion.BaseMotion.single(kind, A_amp, w), cfg.spin_rad_s)
-    T = period_factor * np.pi / w  # PHYSICS.md 5: roll 2 pi/w, pitch and yaw pi/w
+    T = period_factor * np.pi / w  # docs/physics.md#base-motion: roll 2 pi/w, pitch and yaw pi/w
     assert ps.period == pytest.approx(T, rel=1e-14)
     t = np.linspace(0.0, 2 * T, 23)
     A_t = ps.A(t)
@@ -303,7 +303,7 @@ def test_combined_period_T21():
     assert np.abs(ps.A(t + T0 / 2) - A_t).max() > 0.1 * variation
 
 
-# ---- T22: derived - seed = the differences of PHYSICS.md 4.6, term by term ------------------------------------
+# ---- T22: derived - seed = the table of docs/physics.md#formulations ---------------------------------------
 def _slope_integral(cfg, kernel: np.ndarray) -> np.ndarray:
     """sum over elements of int psi'^T kernel psi' ds (n x n), 4-point Gauss with the core's shape functions."""
     sec = fe.section_of(cfg)

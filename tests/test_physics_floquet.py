@@ -1,4 +1,4 @@
-"""PHYSICS.md 8.2, the Floquet, sampled-data and Newmark checks of the FE rotor: T16, T18, T19, T20.
+"""docs/physics.md#checks, the Floquet, sampled-data and Newmark checks of the FE rotor: T16, T18, T19, T20.
 
 Multipliers come from the production paths (``system.periodic_system`` -> ``floquet.floquet`` / ``monodromy``,
 ``sampled.SampledLoop`` -> ``floquet.sampled_floquet``, ``newmark``); the references are the specification's
@@ -76,7 +76,7 @@ def test_magnus_converged_and_validated_T18(kind, A, w, overrides, validate):
     rho_2N = _rho(floquet.monodromy(ps, 2 * N))
     assert abs(res.max_abs - rho_2N) < 1e-8
     if validate:
-        # A(t) rebuilt from the closed-form rates of PHYSICS.md 5 (beta = A sin wt about one axis)
+        # A(t) rebuilt from the closed-form rates of docs/physics.md#base-motion (beta = A sin wt about one axis)
         axis = {"roll": 0, "yaw": 1, "pitch": 2}[kind]
 
         def A_of_t(t):

@@ -1,4 +1,4 @@
-"""PHYSICS.md 8.1: the rigid disk on springs (parameter set P0) through the production one-node model.
+"""docs/physics.md#checks: the rigid disk on springs (parameter set P0) through the production one-node model.
 
 Every A matrix comes from ``structure.rigid_disk_model`` -> ``system.closed_loop`` -> ``loop.matrix(c)``; the
 expected values are the closed forms of the specification (eigenvalue sets matched optimally, 1e-9) and the
@@ -201,7 +201,7 @@ def test_time_varying_roll_and_spin_T6(t6_inertial_in_base, overrides, ok):
     def rhs(t, x):
         Ox, dOx, spin, dspin = _t6_rates(t)
         c = system.coefficients_from_rates(np.array([Ox, 0, 0]), np.array([dOx, 0, 0]), spin)
-        # coefficients_from_rates assumes a constant phi_dot; Phi_dot = phi_ddot + dOmega_x (PHYSICS.md 1)
+        # coefficients_from_rates assumes a constant phi_dot; Phi_dot = phi_ddot + dOmega_x (docs/physics.md#frames)
         c[i_dphi] = dspin + dOx
         return loop.matrix(c) @ x
 
@@ -315,7 +315,7 @@ def _pitch_block_rhos(loop, A, w, N=128):
             rhos.append(np.abs(np.linalg.eigvals(block(Phi, idx))).max())
         out.append(rhos)
     out = np.array(out)
-    assert np.abs(out[1] - out[0]).max() < FLOQUET_TOL / 10  # step doubling converged (PHYSICS.md 6)
+    assert np.abs(out[1] - out[0]).max() < FLOQUET_TOL / 10  # step doubling converged (docs/physics.md#floquet)
     return out[1]
 
 

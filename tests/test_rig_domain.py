@@ -12,11 +12,11 @@ import re
 import time
 
 import pytest
-from test_rig_lockstep import rig_json
 
 from amb_bringup.domain import WATCH_PERIOD_S, Watch, describe, topics_of
 from amb_bringup.rig import LOCK_WAIT_S
 from amb_ros import messages as m
+from helpers import rig_json
 from procs import spawn
 
 pytestmark = pytest.mark.ros

@@ -16,9 +16,9 @@ import signal
 import time
 
 import pytest
-from test_rig_lockstep import rig_json
 
 from amb_bringup.supervisor import alive
+from helpers import rig_json
 from procs import spawn
 
 pytestmark = pytest.mark.ros
@@ -31,7 +31,8 @@ def started_pids(text: str) -> dict[str, int]:
 def kill_controller_mid_run(tmp_path, venv_bin, args, progress: int = 500):
     """Start amb-rig, kill -9 the controller once ``progress`` samples have been published (seen over DDS)."""
     from sensor_msgs.msg import JointState
-    from test_rig_lockstep import DdsRecorder
+
+    from helpers import DdsRecorder
 
     log = tmp_path / "rig.log"
     cmd = [str(venv_bin / "amb-rig"), "run", "--log-dir", str(tmp_path / "logs"), *args]

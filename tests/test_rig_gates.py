@@ -43,8 +43,8 @@ def test_a_late_peer_is_start_up_not_loop_time(tmp_path, venv_bin):
 
     from geometry_msgs.msg import Vector3Stamped
     from rosgraph_msgs.msg import Clock
-    from test_rig_lockstep import DdsRecorder, rig_json
 
+    from helpers import DdsRecorder, rig_json
     from procs import spawn
 
     late_s, duration = 2.0, 1.0

@@ -9,9 +9,6 @@ pitch-modulated closed loop has something to do; base forcing is off in the seed
 
 from __future__ import annotations
 
-import json
-import threading
-
 import numpy as np
 import pytest
 
@@ -20,62 +17,13 @@ from amb_dynamics.fe import dof_index
 from amb_dynamics.motion import BaseMotion
 from amb_dynamics.sampled import SampledLoop
 from amb_dynamics.structure import build_structure
-from procs import spawn
+from helpers import DdsRecorder, run_rig
 
 pytestmark = pytest.mark.ros
 
 DURATION_S = 0.4  # 2000 steps at 5 kHz
 TS_NS = 200_000
 DISK_V = 1e-4  # m
-
-
-class DdsRecorder:
-    """Records raw messages of some topics in this process (own rclpy context, spun in a thread)."""
-
-    def __init__(self, topics: dict, qos=None):
-        import rclpy
-        from rclpy.executors import SingleThreadedExecutor
-
-        from amb_ros.qos import diagnostics_qos, lockstep_qos
-
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx)
-        self.node = rclpy.create_node("test_recorder", context=self.ctx)
-        self.messages: dict[str, list] = {t: [] for t in topics}
-        qos = qos if qos is not None else lockstep_qos(100000)
-        for topic, msg_type in topics.items():
-            q = diagnostics_qos() if topic == "/diagnostics" else qos
-            self.node.create_subscription(msg_type, topic, self.messages[topic].append, q)
-        self.executor = SingleThreadedExecutor(context=self.ctx)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self):
-        while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def close(self):
-        self._stop.set()
-        self.thread.join(5)
-        self.node.destroy_node()
-        self.ctx.try_shutdown()
-
-
-def rig_json(text: str) -> dict:
-    return json.loads(text[text.index("{") : text.rindex("}") + 1])
-
-
-def run_rig(tmp_path, venv_bin, args, timeout=180.0):
-    """amb-rig run --json with ``args``; returns (exit code, summary dict, log text)."""
-    tmp_path.mkdir(parents=True, exist_ok=True)
-    log = tmp_path / "rig.log"
-    cmd = [str(venv_bin / "amb-rig"), "run", "--json", "--log-dir", str(tmp_path / "logs"), *args]
-    with spawn(cmd, log) as proc:
-        code = proc.wait(timeout)
-        text = proc.text()
-    return code, rig_json(text), text
 
 
 def stamp(msg) -> int:

@@ -9,7 +9,8 @@ count of commands received; percentiles are ordered; the jitter is well below a 
 from __future__ import annotations
 
 import pytest
-from test_rig_lockstep import run_rig
+
+from helpers import run_rig
 
 pytestmark = pytest.mark.ros
 

@@ -2,7 +2,7 @@
 
 The node packages (with the core and amb_ros) are copied into a temporary workspace and built with colcon (build,
 install and log bases in tmp_path).  With the environment that ``install/setup.bash`` gives (AMENT_PREFIX_PATH
-and PYTHONPATH of the install, plus the venv's prefix for the message packages, ROS2-NOTES.md 1), each
+and PYTHONPATH of the install, plus the venv's prefix for the message packages, which pip installed there), each
 executable is resolved as ros2run does: ``get_package_prefix(pkg)`` / lib / pkg / exe, a file, executable.
 Then each node is started from that path with a bad parameter (one line, exit 2), and a short lockstep run
 of the three nodes from the install completes.

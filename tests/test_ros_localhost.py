@@ -19,7 +19,8 @@ import threading
 import time
 
 import pytest
-from test_rig_lockstep import run_rig
+
+from helpers import run_rig
 
 from amb_ros.env import child_env
 from procs import spawn

@@ -1,4 +1,4 @@
-"""Timoshenko option (PHYSICS.md 4.8): shear flexibility against the analytic cantilever, and its EB limit."""
+"""Timoshenko option (docs/physics.md#timoshenko): shear against the analytic cantilever, and its EB limit."""
 
 from dataclasses import replace
 

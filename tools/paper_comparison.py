@@ -1,13 +1,17 @@
 """Reproduce docs/paper-comparison.md's figures and numbers: `.venv/bin/python tools/paper_comparison.py`.
 
-The seed paper's three claims (PHYSICS.md 9) against this software's `seed` and `derived` formulations.
+The seed paper's three claims (docs/physics.md#formulations) against this software's `seed` and `derived` formulations.
 """
 
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
+from amb_dynamics.threads import single_thread_env
+
+os.environ.update(single_thread_env())  # one BLAS thread, set before numpy loads (amb_dynamics/threads.py)
 import numpy as np
 
 from amb_dynamics import plots

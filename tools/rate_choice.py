@@ -1,12 +1,17 @@
 """How the default controller rate and plant model were chosen: `.venv/bin/python tools/rate_choice.py`.
 
-Sampled-data Floquet analysis of the digital PD loop at rest (PHYSICS.md 3.3) for several plant models
+Sampled-data Floquet analysis of the digital PD loop at rest (docs/physics.md#modal-cutoff) for several plant models
 (modal cutoffs) and rates: max|mu| per sample, and the largest multiplier among the 'digital' modes
 (|arg mu|/Ts > 2000 rad/s, the mesh modes that sampling folds near Nyquist).
 """
 
 from __future__ import annotations
 
+import os
+
+from amb_dynamics.threads import single_thread_env
+
+os.environ.update(single_thread_env())  # one BLAS thread, set before numpy loads (amb_dynamics/threads.py)
 import numpy as np
 
 from amb_dynamics.config import load_config, paper_config_path

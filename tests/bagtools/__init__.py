@@ -1,1 +1,1 @@
-"""Helpers for the bag tests: the DESIGN.md topic mix and a publisher process that logs what it sent."""
+"""Helpers for the bag tests: the rig's topic mix (docs/topics.md) and a publisher process that logs what it sent."""

@@ -1,4 +1,4 @@
-"""The DESIGN.md section 3 topic mix, deterministic per step, serialized to CDR independently of rclpy.
+"""The rig's topic mix (docs/topics.md), deterministic per step, serialized to CDR independently of rclpy.
 
 rclpy's ``serialize_message`` returns a buffer with trailing bytes in these wheels (JointState: 108 bytes where
 the wire message has 100), which a strict reader (rosbags) rejects; the rosbags typestore serializes exactly what
@@ -77,7 +77,7 @@ def step_messages(k: int) -> list[tuple[str, str, object]]:
         header=_header(k, "base"),
         orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(a / 2), w=math.cos(a / 2)),
         orientation_covariance=np.zeros(9),
-        angular_velocity=v3(x=0.0, y=0.0, z=7.35 * math.cos(24.5 * t)),  # pitch: about Z (PHYSICS.md 5)
+        angular_velocity=v3(x=0.0, y=0.0, z=7.35 * math.cos(24.5 * t)),  # pitch: about Z (docs/physics.md#base-motion)
         angular_velocity_covariance=np.zeros(9),
         linear_acceleration=v3(x=0.0, y=0.0, z=9.81),
         linear_acceleration_covariance=np.zeros(9),

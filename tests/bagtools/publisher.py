@@ -1,4 +1,4 @@
-"""Test publisher: the DESIGN.md topic mix as raw CDR, paced or flat out, logging every message it sent.
+"""Test publisher: the rig's topic mix as raw CDR, paced or flat out, logging every message it sent.
 
     python tests/bagtools/publisher.py --steps 2000 --rate 1000 --log sent.pkl [--wait-subscribers 10]
 

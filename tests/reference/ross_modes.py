@@ -2,7 +2,7 @@
 
 Run with the reference venv (make ref):  .venv-ref/bin/python tests/reference/ross_modes.py OUT.json 0 1000
 Writes JSON {speed_rpm: [[re, im], ...]} of ROSS's eigenvalues (all, unsorted) for the seed rotor of
-PHYSICS.md 2: 6 Euler-Bernoulli elements with rotary inertia and gyroscopics (shear off), the solid disk at node 7,
+docs/physics.md#seed-rotor: 6 Euler-Bernoulli elements, rotary inertia, gyroscopics, no shear, the solid disk at node 7,
 and the ideal-PD AMBs as base-fixed springs and dampers k_eq = |ks| = 1.388e6 N/m, c_eq = 2000 N s/m at nodes 1, 5.
 """
 

@@ -34,7 +34,7 @@ def _cmd_info(args) -> int:
     from .info import bag_info, format_info
 
     info = bag_info(args.bag)
-    print(json.dumps(info, indent=2) if args.json else format_info(info))
+    print(json.dumps({"schema_version": 1, **info}, indent=2) if args.json else format_info(info))
     return 0
 
 
@@ -43,7 +43,7 @@ def _cmd_check(args) -> int:
 
     report = check(args.bag, repair=not args.dry_run)
     if args.json:
-        print(json.dumps(report, indent=2))
+        print(json.dumps({"schema_version": 1, **report}, indent=2))
     else:
         print(_format_check(report))
     return 0 if report["status"] == "ok" else EXIT_DAMAGED

@@ -3,7 +3,7 @@
 Panels (each only if its topic is in the bag): AMB displacements from /amb/displacement as a fraction of the
 air gap (``--config`` rotor file, default the seed rotor's 2.5e-3 m), control currents from /amb/current
 (effort, A), base attitude from /base/imu (roll about X, pitch about Z, yaw about Y, of the base->inertial
-quaternion, rad, as PHYSICS.md section 5), and the
+quaternion, rad, as docs/physics.md#base-motion), and the
 spectral radius rho = max|mu| from /stability/multipliers (layout [k, 2] = re, im) against the stability
 limit 1.  Times are the messages' header stamps (simulated time in lockstep); /stability/multipliers has no
 stamp, so its log time is mapped to simulated time through the recorded /clock (log time from the start if
@@ -31,7 +31,7 @@ def _stamp_s(msg) -> float:
 def euler_from_quaternion(x: float, y: float, z: float, w: float) -> tuple[float, float, float]:
     """Roll, pitch, yaw (rad) of a unit base->inertial quaternion (x, y, z, w), in this project's convention.
 
-    PHYSICS.md section 5: roll about X (the rotor axis), yaw about Y, pitch about Z, and the attitude of a
+    docs/physics.md#base-motion: roll about X (the rotor axis), yaw about Y, pitch about Z, and the attitude of a
     combined motion is R = Ry(yaw) Rz(pitch) Rx(roll).  With that product, R[1,0] = sin(pitch),
     (R[0,0], R[2,0]) = cos(pitch) (cos yaw, -sin yaw) and (R[1,1], R[1,2]) = cos(pitch) (cos roll, -sin roll).
     """

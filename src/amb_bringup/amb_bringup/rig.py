@@ -212,7 +212,7 @@ def run(args, cfg, lock) -> int:
         **({"notes": notes} if notes else {}),
     }
     summary = build_summary(run_info, sup.children, collector, errors)
-    print(json.dumps(summary, indent=2) if args.json else format_summary(summary), flush=True)
+    print(json.dumps({"schema_version": 1, **summary}, indent=2) if args.json else format_summary(summary), flush=True)
     if interrupted.signum is not None:
         return 128 + interrupted.signum
     return 0 if summary["ok"] else EXIT_FAILED

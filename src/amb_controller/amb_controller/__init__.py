@@ -1,1 +1,5 @@
 """Node: fixed-rate digital PID per AMB axis."""
+
+from amb_dynamics.threads import limit_blas_threads
+
+limit_blas_threads()  # an entry-point package: one BLAS thread, set before its modules load numpy

@@ -1,4 +1,4 @@
-"""The digital AMB controller: discrete PID per axis with filtered derivative (PHYSICS.md 3.3).
+"""The digital AMB controller: discrete PID per axis with filtered derivative (docs/physics.md#sampled).
 
 ``DiscretePID`` is the one implementation used by the controller node and by the offline sampled-data
 simulation, so that both produce the same numbers.  ``pid_update_matrices`` is its linear form for the

@@ -156,7 +156,7 @@ def run_floquet(args):
 
 
 def _aperiodic(s: Setup, ps, motion: BaseMotion, args):
-    """Incommensurate harmonics: no monodromy; Lyapunov-type growth measures (PHYSICS.md 5)."""
+    """Incommensurate harmonics: no monodromy; Lyapunov-type growth measures (docs/physics.md#aperiodic)."""
     if args.controller != "continuous":
         raise InputError("an aperiodic base motion is analysed with the continuous controller only")
     fastest = max(h.frequency for h in motion.harmonics)
@@ -239,7 +239,7 @@ def run_simulate(args):
             stable=fl.stable,
             relative_difference=abs(sigma - sigma_f) / max(abs(sigma_f), 1e-300),
         )
-        # the fit is only comparable once the subdominant multipliers have decayed by 1e-2 (PHYSICS.md 7)
+        # the fit is only comparable once the subdominant multipliers have decayed by 1e-2 (docs/physics.md#newmark)
         gap = np.log(fl.max_abs / max(abs(fl.multipliers[2]), 1e-300)) / T  # [0], [1]: a conjugate pair
         needed = np.log(100.0) / gap if gap > 0 else np.inf
         data["fit_window_start_s"] = float(tt[0])
@@ -275,5 +275,5 @@ def run_simulate(args):
 def _write_json(path: Path, data: dict) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".part")
-    tmp.write_text(json.dumps(data))
+    tmp.write_text(json.dumps({"schema_version": 1, **data}))
     tmp.replace(path)

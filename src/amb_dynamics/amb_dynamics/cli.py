@@ -10,14 +10,14 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
-from . import analysis, unbalance_report
 from .errors import AmbError
+from .threads import limit_blas_threads
 
 
-def grid(text: str) -> np.ndarray:
-    """'lo:hi:n' -> linspace(lo, hi, n); 'a,b,c' or 'a' -> values."""
+def grid(text: str):
+    """'lo:hi:n' -> linspace(lo, hi, n); 'a,b,c' or 'a' -> values (np.ndarray)."""
+    import numpy as np  # not at module level: main() limits the BLAS threads before numpy loads
+
     try:
         if ":" in text:
             lo, hi, n = text.split(":")
@@ -125,23 +125,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--points", type=int, default=2000, help="log-spaced frequencies in the band")
     p.add_argument("--axis", action="append", default=None, help="only this AMB axis, e.g. amb1_y (repeatable)")
     p.add_argument("--out", type=Path, default=None, help="PNG: Bode magnitude per axis with the zone bands")
+    from . import unbalance_report  # imports numpy: only once main() has limited the BLAS threads
+
     unbalance_report.add_parser(sub, _common)
     return ap
 
 
-RUNNERS = {"unbalance": unbalance_report.run_unbalance}  # verbs outside analysis.py
-
-
 def main(argv: list[str] | None = None) -> int:
+    limit_blas_threads()  # first: BLAS reads its thread count when numpy loads (amb_dynamics/threads.py)
+    from . import analysis, unbalance_report  # import numpy
+
+    runners = {"unbalance": unbalance_report.run_unbalance}  # verbs outside analysis.py
     args = build_parser().parse_args(argv)
     # the chart writes its own JSON file; --json there also prints the summary
     try:
-        result, text = RUNNERS.get(args.verb, getattr(analysis, f"run_{args.verb}", None))(args)
+        result, text = runners.get(args.verb, getattr(analysis, f"run_{args.verb}", None))(args)
     except AmbError as exc:
         print(f"amb-dynamics {args.verb}: error: {exc}", file=sys.stderr)
         return 2
     if args.json:
-        json.dump(result, sys.stdout, indent=1)
+        json.dump({"schema_version": 1, **result}, sys.stdout, indent=1)
         print()
     else:
         print(text)

@@ -129,7 +129,7 @@ class RotorConfig:
     drive_model: str = _f(choices=("body_axis", "cardan"), default="body_axis")
     seed_disk_H: str = _f(choices=("literal", "consistent"), default="literal")
     axial_stiffening: bool = _f(default=False)
-    base_forcing: bool = _f(default=False, doc="inertial load of the base rotation (PHYSICS.md 4.7) in time runs")
+    base_forcing: bool = _f(default=False, doc="load of the base rotation (docs/physics.md#forcing), time runs")
     modal_cutoff: float | None = _f("rad/s", 0.0, open_lo=True, default=None)
     base_motion: BaseMotionConfig = field(default_factory=BaseMotionConfig)
     max_speed_rpm: float | None = _f("rpm", 0.0, open_lo=True, default=None, doc="maximum service speed")

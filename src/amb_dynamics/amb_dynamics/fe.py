@@ -1,4 +1,4 @@
-"""Finite-element matrices of the rotor in the moving base frame (PHYSICS.md sections 4.1-4.8).
+"""Finite-element matrices of the rotor in the moving base frame (docs/physics.md#fe).
 
 Node DOFs are [v, w, theta_y, theta_z] with theta_y = -w', theta_z = +v'.  Element integrals use
 4-point Gauss-Legendre quadrature, exact for the cubic (Euler-Bernoulli or Timoshenko) shape functions.
@@ -174,7 +174,7 @@ def disk_props(disk: DiskConfig, density: float) -> DiskProps:
 
 
 def disk_matrices(dp: DiskProps, seed_disk_H: str = "literal") -> dict[str, np.ndarray]:
-    """4x4 disk matrices on [v, w, theta_y, theta_z] (PHYSICS.md 4.3 and 4.5)."""
+    """4x4 disk matrices on [v, w, theta_y, theta_z] (docs/physics.md#disk, #formulations)."""
     m, Ip, Id = dp.m, dp.Ip, dp.Id
     z2 = np.zeros((2, 2))
 
@@ -240,7 +240,7 @@ class FEModel:
     """Global constant matrices (n x n, n = 4 * nodes) and forcing shapes of the free rotor.
 
     ``mats`` holds every name of MATRIX_NAMES plus ``K_G`` (geometric stiffness per unit
-    Omega_y^2 + Omega_z^2); ``forcing`` is (n, 4): the load vectors f1..f4 of PHYSICS.md 4.7 for the
+    Omega_y^2 + Omega_z^2); ``forcing`` is (n, 4): the load vectors f1..f4 of docs/physics.md#forcing for the
     coefficients a1 = dOz + Ox*Oy, a2 = dOy - Ox*Oz, a3 = Phi*Oz, a4 = Phi*Oy.
     """
 
@@ -279,7 +279,7 @@ def assemble(cfg: RotorConfig) -> FEModel:
         for name in MATRIX_NAMES:
             mats[name][idx, idx] += el[name]
         x0 = node_x[e]
-        # tension per unit (Oy^2 + Oz^2) with the thrust bearing at x = 0 (PHYSICS.md 10):
+        # tension per unit (Oy^2 + Oz^2) with the thrust bearing at x = 0 (docs/physics.md#forcing):
         # n(x) = rhoA (L^2 - x^2)/2 + sum of m x_d over disks beyond x; x = x0 + s
         disk_term = sum(dp.m * node_x[dp.node - 1] for dp in disks if node_x[dp.node - 1] > x0 + 1e-12)
         a0 = sec.rho_A * (L**2 - x0**2) / 2 + disk_term

@@ -1,4 +1,4 @@
-"""Monodromy matrices and Floquet multipliers (PHYSICS.md sections 3.3 and 6).
+"""Monodromy matrices and Floquet multipliers (docs/physics.md#floquet).
 
 Continuous closed loop: fourth-order Magnus with N fixed steps per period (h = T/N), the step exponentials
 batched, N doubled until rho changes by less than tol/10.  Sampled-data loop: the product of the step maps
@@ -123,7 +123,7 @@ def chain_product(steps: np.ndarray) -> np.ndarray:
 
 
 def monodromy(ps: PeriodicSystem, N: int, T: float | None = None) -> np.ndarray:
-    """Phi(T) of x' = A(t) x by N Magnus-4 steps (PHYSICS.md 6)."""
+    """Phi(T) of x' = A(t) x by N Magnus-4 steps (docs/physics.md#floquet)."""
     T = ps.period if T is None else T
     if T is None:
         raise InputError("this base motion has no period: no Floquet analysis (use the Lyapunov exponent)")
@@ -179,7 +179,7 @@ def sampled_floquet(
     period: float | None,
     snap: bool = False,
 ) -> FloquetResult:
-    """Multipliers of the digital loop per base period (PHYSICS.md 3.3).
+    """Multipliers of the digital loop per base period (docs/physics.md#floquet).
 
     For T/Ts = p/r the monodromy is F_{p-1}...F_0 over r base periods, reported as |mu|^(1/r) per base period
     with angles divided by r.  ``snap`` replaces Ts by T/round(T/Ts) for other ratios (and says so).
@@ -236,7 +236,7 @@ def sampled_lyapunov(loop: SampledLoop, motion: BaseMotion, periods: int, period
 
 
 def aperiodic_exponents(ps: PeriodicSystem, duration: float, h: float, chunk: int = 128) -> dict:
-    """No period (incommensurate or recorded motion, PHYSICS.md 5): growth measures of Phi(t, 0) over ``duration``.
+    """No period (incommensurate or recorded motion, docs/physics.md#aperiodic): growth of Phi(t, 0) over ``duration``.
 
     Returns the finite-time Lyapunov exponent (1/t) ln ||Phi(t,0)||_2, the largest Lyapunov exponent from
     QR-orthonormalised products (second half of the run), and max_t ||Phi(t,0)||_2 (sampled every ``chunk`` steps).

@@ -1,8 +1,8 @@
 """Closed-loop eigen-analysis at a constant base rate (Omega = 0 by default) over spin speeds.
 
-A mode is a complex-conjugate pair of the continuous closed loop (PHYSICS.md 3.2), reported once with its damped
+A mode is a complex-conjugate pair of the closed loop (docs/physics.md#controller), reported once with its damped
 frequency Im(lambda) > 0; real (overdamped) roots are listed separately.  Whirl: forward if
-sum_nodes Im(conj(phi_v) phi_w) < 0 (the orbit turns from +Y toward +Z), PHYSICS.md T15.
+sum_nodes Im(conj(phi_v) phi_w) < 0 (the orbit turns from +Y toward +Z), docs/physics.md#modes.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Base-motion profiles (PHYSICS.md section 5): Omega(t), dOmega(t), attitude and periods.
+"""Base-motion profiles (docs/physics.md#base-motion): Omega(t), dOmega(t), attitude and periods.
 
 Every profile is a sum of harmonics beta_axis(t) = A sin(w t + phase) about roll (X), pitch (Z) and yaw (Y),
 composed as R = Ry(beta_Y) Rz(beta_P) Rx(beta_R).  Single-axis motions are the one-harmonic case.
@@ -113,7 +113,7 @@ class BaseMotion:
         """Period of A(t): the fundamental period or its half if the parametric coefficients repeat.
 
         ``coefficients(t)`` returns the coefficient array (k, len(t)) of the system; pitch and yaw
-        enter A(t) only squared, so their period halves (PHYSICS.md 5).
+        enter A(t) only squared, so their period halves (docs/physics.md#base-motion).
         """
         T0 = self.fundamental_period()
         if T0 is None:

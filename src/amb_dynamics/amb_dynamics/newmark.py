@@ -1,4 +1,4 @@
-"""Newmark-beta time response (average acceleration) of the closed loop, PHYSICS.md section 7.
+"""Newmark-beta time response (average acceleration) of the closed loop, docs/physics.md#newmark.
 
 The second-order matrices are read back from the closed loop A(t) itself ([K, D, Kz] = -M A[q'' rows]), so the
 time response and the Floquet analysis integrate the same equations.  Controller states z (integral, derivative

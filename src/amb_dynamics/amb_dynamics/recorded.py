@@ -1,4 +1,4 @@
-"""A recorded base trajectory: Euler angles read from CSV, smoothed, differentiated (PHYSICS.md section 5).
+"""A recorded base trajectory: Euler angles read from CSV, smoothed, differentiated (docs/physics.md#base-motion).
 
 The file has a header line and columns ``t`` (s, strictly increasing) and any of ``roll``, ``pitch``, ``yaw``
 (rad; a missing axis is zero), e.g. from a rig's IMU log.  Each angle is fitted with a cubic smoothing spline

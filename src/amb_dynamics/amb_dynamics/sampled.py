@@ -1,4 +1,4 @@
-"""The sampled-data closed loop that the node suite runs (PHYSICS.md 3.3).
+"""The sampled-data closed loop that the node suite runs (docs/physics.md#sampled).
 
 Between samples the plant is continuous with the current held (zero-order hold) and the base motion held
 at its sample (Omega_k, dOmega_k), exactly as the plant node receives it from /base/imu.  One step is
@@ -33,7 +33,7 @@ class PlantStepper:
     model : StructuralModel
     cfg : RotorConfig (formulation, drive model, axial stiffening)
     Ts : float, sample period (s)
-    forcing : bool or None, include the base-motion forcing f(t) (PHYSICS.md 4.7); None: cfg.base_forcing
+    forcing : bool or None, include the base-motion forcing f(t) (docs/physics.md#forcing); None: cfg.base_forcing
     """
 
     def __init__(self, model: StructuralModel, cfg: RotorConfig, Ts: float, forcing: bool | None = None):
@@ -141,7 +141,7 @@ class SampledLoop:
         return SampledRun(t, x, y, cur)
 
     def step_map(self, Omega: np.ndarray, dOmega: np.ndarray) -> np.ndarray:
-        """F_k on X_k = [xp(t_k); controller memory] (PHYSICS.md 3.3), for rates held over the step."""
+        """F_k on X_k = [xp(t_k); controller memory] (docs/physics.md#sampled), for rates held over the step."""
         g = self.model.gains
         use_int, use_eta = g.kI != 0.0, g.kd != 0.0
         Py, Pm, Uy, Um, parts = pid_update_matrices(self.pid_coeffs, 4, use_int, use_eta, self.delay > 0)

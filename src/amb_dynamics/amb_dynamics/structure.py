@@ -1,6 +1,6 @@
 """The structural model the dynamics run on: FE matrices + AMB axes, optionally modally reduced.
 
-``StructuralModel`` holds the constant matrices of PHYSICS.md 4.2-4.5 in generalised coordinates
+``StructuralModel`` holds the constant matrices of docs/physics.md#fe to #formulations in generalised coordinates
 (FE DOFs, or modal coordinates below ``modal_cutoff``), the AMB selection Ba and the forcing shapes.
 """
 
@@ -60,7 +60,7 @@ class StructuralModel:
 
     mats : dict of (n, n) arrays, names of fe.MATRIX_NAMES plus K_G.
     Ba : (n, 4) AMB selection, y = Ba^T q for channels ``channels``.
-    forcing : (n, 4) load shapes for a1..a4 (PHYSICS.md 4.7).
+    forcing : (n, 4) load shapes for a1..a4 (docs/physics.md#forcing).
     basis : (n_fe, n) modal basis Psi_r (q_fe = Psi_r q), or None for the full FE model.
     """
 
@@ -135,7 +135,7 @@ def rigid_disk_model(
     c: float = 0.0,
     cfg: RotorConfig | None = None,
 ) -> StructuralModel:
-    """A one-node rotor (rigid disk on base-fixed springs, PHYSICS.md 8.1) through the production assembly.
+    """A one-node rotor (rigid disk on base-fixed springs, docs/physics.md#checks) through the production assembly.
 
     K_B : (4, 4) stiffness on [v, w, theta_y, theta_z] (N/m, N m/rad); c : base-fixed damping on v, w (N s/m).
     The damper enters as an ideal-derivative 'bearing' on v and w (ki kd = c, ki kp + ks = 0).

@@ -1,4 +1,4 @@
-"""The closed loop x' = A(t) x + b(t) of the rotor on its AMBs on a moving base (PHYSICS.md 3.2, 4.4-4.7).
+"""The closed loop x' = A(t) x + b(t) of the rotor on its AMBs on a moving base (docs/physics.md#eom, #controller).
 
 A(t) = A0 + sum_j c_j(t) A_j with the coefficients ``COEFFICIENTS`` of the base motion and spin; the
 constant matrices A_j come from the formulation (``derived`` or ``seed``).  Controller states (integral
@@ -33,7 +33,7 @@ def coefficients_from_rates(Om: np.ndarray, dOm: np.ndarray, spin, spin_accel=0.
 
 
 def forcing_from_rates(Om: np.ndarray, dOm: np.ndarray, spin: float) -> np.ndarray:
-    """a1..a4 of PHYSICS.md 4.7: (dOz + Ox Oy, dOy - Ox Oz, Phi Oz, Phi Oy), shape (4, ...)."""
+    """a1..a4 of docs/physics.md#forcing: (dOz + Ox Oy, dOy - Ox Oz, Phi Oz, Phi Oy), shape (4, ...)."""
     Ox, Oy, Oz = Om
     Phi = spin + Ox
     return np.array([dOm[2] + Ox * Oy, dOm[1] - Ox * Oz, Phi * Oz, Phi * Oy])
@@ -45,7 +45,7 @@ def coefficient_values(motion: BaseMotion, spin: float, t) -> np.ndarray:
 
 
 def forcing_values(motion: BaseMotion, spin: float, t) -> np.ndarray:
-    """a1..a4 of PHYSICS.md 4.7, shape (4, len(t))."""
+    """a1..a4 of docs/physics.md#forcing, shape (4, len(t))."""
     return forcing_from_rates(*motion.angular_velocity(t), spin)
 
 
@@ -105,7 +105,7 @@ class ClosedLoop:
 
 
 def closed_loop(model: StructuralModel, cfg: RotorConfig) -> ClosedLoop:
-    """Assemble the continuous closed loop of PHYSICS.md 3.2 (collocated PID, ideal or filtered)."""
+    """Assemble the continuous closed loop of docs/physics.md#controller (collocated PID, ideal or filtered)."""
     n, g, Ba = model.n, model.gains, model.Ba
     M = model.M
     Minv = sla.inv(M)  # n <= a few hundred; M is factored once here, never in a loop

@@ -1,4 +1,4 @@
-"""Validation integrator (PHYSICS.md 6): the monodromy by scipy solve_ivp on the matrix ODE X' = A(t) X.
+"""Validation integrator (docs/physics.md#floquet): the monodromy by scipy solve_ivp on the matrix ODE X' = A(t) X.
 
 Straightforward and slow on purpose: it is the independent reference for the Magnus integrator and the chart.
 """

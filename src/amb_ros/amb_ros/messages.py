@@ -1,4 +1,4 @@
-"""The topics of the rig (DESIGN.md section 3), their message layouts and the checks applied on receipt.
+"""The topics of the rig (docs/topics.md), their message layouts and the checks applied on receipt.
 
 Every topic has a fast fixed-layout codec (:mod:`amb_ros.codec`) and a slow path that deserializes a foreign
 layout with rclpy and validates it.  ``Decoder.__call__`` returns ``(stamp_ns, values)`` or raises

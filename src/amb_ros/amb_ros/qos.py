@@ -1,4 +1,4 @@
-"""QoS profiles of the rig, each with its reason (DESIGN.md section 5).
+"""QoS profiles of the rig, each with its reason (docs/topics.md#qos).
 
 - Lockstep data (/clock, /base/*, /amb/*, /amb_plant/state): RELIABLE so that no sample is lost, KEEP_LAST with a
   depth that covers a slow reader's lag (a recorder or monitor; plant and controller alternate, so they need 1),

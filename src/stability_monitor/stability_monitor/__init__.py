@@ -1,7 +1,6 @@
 """Stability monitor: online Floquet multipliers of the running rig, instability flag, offline re-analysis."""
 
-import os as _os
+from amb_dynamics.threads import limit_blas_threads
 
 # The monitor shares the machine's cores with the lockstep loop: one BLAS thread (set before numpy loads).
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    _os.environ.setdefault(_var, "1")
+limit_blas_threads()

@@ -16,7 +16,7 @@ import numpy as np
 
 import amb_ros.messages as m
 from amb_dynamics.errors import InputError
-from amb_dynamics.estimate_stream import Estimate
+from amb_dynamics.estimator.stream import Estimate
 from amb_dynamics.motion import AXES, BaseMotion, Harmonic
 
 from .bagread import BagReadError, bag_files, bag_topics, read_messages

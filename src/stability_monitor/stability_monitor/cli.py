@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 from amb_dynamics.errors import AmbError
-from amb_dynamics.estimate import METHODS
+from amb_dynamics.estimator.fit import METHODS
 
 from .pipeline import FORCING_CHOICES, MonitorSettings
 
@@ -89,7 +89,7 @@ def analyze(argv: list[str]) -> int:
         plot_path = plot_rho(result, args.plot, args.margin, args.confidence_z)
     doc = result.to_dict(args.top)
     if args.json:
-        print(json.dumps(doc, indent=1))
+        print(json.dumps({"schema_version": 1, **doc}, indent=1))
     else:
         print_report(doc, plot_path)
     return 0

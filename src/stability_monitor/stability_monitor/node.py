@@ -21,7 +21,7 @@ publishes  /diagnostics            rho, its standard error and confidence, perio
 Time is the stamp of the samples (t_k of the lockstep /clock, or of the replayed bag): the estimates depend on
 the data only, never on wall time, so a replay gives the live run's output.  The monitor only reads the lockstep
 topics (reliable, deep history), so it never holds up the loop; its cost per sample is in the diagnostics.
-The numbers come from ``amb_dynamics.estimate*`` through :mod:`stability_monitor.pipeline`.
+The numbers come from ``amb_dynamics.estimator`` through :mod:`stability_monitor.pipeline`.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 import amb_ros.messages as m
 from amb_dynamics.errors import InputError
-from amb_dynamics.estimate import METHODS
+from amb_dynamics.estimator.fit import METHODS
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.live_params import LiveParams, param_at_spec
 from amb_ros.loop import Waiter

@@ -14,9 +14,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from amb_dynamics.errors import InputError
-from amb_dynamics.estimate import VerdictPolicy
-from amb_dynamics.estimate_period import PeriodEstimate, estimate_base_period
-from amb_dynamics.estimate_stream import Estimate, EstimatorConfig, StreamingEstimator
+from amb_dynamics.estimator.fit import VerdictPolicy
+from amb_dynamics.estimator.period import PeriodEstimate, estimate_base_period
+from amb_dynamics.estimator.stream import Estimate, EstimatorConfig, StreamingEstimator
 
 FORCING_CHOICES = ("auto", "none", "constant", "alternating", "two_periods")
 IMU_TRY_EVERY = 64  # base-rate samples between attempts to find the period (64 ms at the 1 kHz lockstep /base/imu)

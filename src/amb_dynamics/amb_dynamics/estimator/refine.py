@@ -1,6 +1,6 @@
 """Optimized DMD: the multipliers of a one-period-map fit refined by variable projection (issue 6).
 
-The least-squares DMD of :func:`amb_dynamics.estimate.fit_period_map` treats the regressor columns as exact.  In
+The least-squares DMD of :func:`amb_dynamics.estimator.fit.fit_period_map` treats the regressor columns as exact.  In
 the period-stacked data of a rotor with excitation injection they are not: every column also carries the
 response of the fast modes to that period's excitation, which is not predicted by the previous column and is
 close to white, equal-variance noise on the rows (measured on the seed rotor: flat covariance spectrum).  Noise in
@@ -23,7 +23,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .estimate import MapFit, forcing_regressors
+from .mapfit import MapFit, forcing_regressors
 
 MAX_ITER = 8
 REAL_TOL = 1e-9  # |Im mu| below this times |mu|: a real multiplier

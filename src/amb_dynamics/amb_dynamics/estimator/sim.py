@@ -6,7 +6,7 @@ K closed-loop maps F_k = ``loop.step_map`` once and then steps
 
     X_{k+1} = F_{k mod K} X_k + [g_k + Gamma_k e_k; 0]
 
-with X = [q; q'; controller memory] (PHYSICS.md 3.3), g_k the base-motion forcing and e_k an optional random
+with X = [q; q'; controller memory] (docs/physics.md#sampled), g_k the base-motion forcing and e_k an optional random
 current added to the controller output (the node suite's excitation injection, or amplifier noise).  It is
 the same closed loop as ``SampledLoop.simulate`` (tests compare them) plus the excitation, and it can start
 on the forced periodic orbit (a fully decayed rotor).  Measurement noise is added to the snapshots only.
@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .amb import pid_update_matrices
-from .errors import InputError
-from .motion import BaseMotion
-from .sampled import SampledLoop, SampledRun
+from ..amb import pid_update_matrices
+from ..errors import InputError
+from ..motion import BaseMotion
+from ..sampled import SampledLoop, SampledRun
 
 PERIOD_MATCH_TOL = 1e-9  # relative: T/Ts must be this close to an integer for the cyclic step maps
 

@@ -19,7 +19,7 @@ multipliers of the modes present in the data.  ``fit_period_map`` identifies A o
 4. eigenvalues -> multipliers, and a first-order standard error of rho = max|mu| from the LS residual
    covariance and the eigenvalue's left/right eigenvectors;
 5. optionally ('opt', the monitor's default) the multipliers refined by variable projection on the snapshots
-   themselves, with the standard error from its Jacobian (:mod:`amb_dynamics.estimate_opt`).
+   themselves, with the standard error from its Jacobian (:mod:`amb_dynamics.estimator.refine`).
 
 ``InstabilityFlag`` turns the estimates into a verdict with a margin, a confidence gate and hysteresis.
 Noise-free data of a linear loop are fitted exactly: the dominant multipliers come out to round-off.
@@ -29,109 +29,28 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
 import scipy.linalg as sla
 
-from .errors import InputError
+from ..errors import InputError
+from .mapfit import (
+    COLLECTING,
+    INSUFFICIENT,
+    MARGINAL,
+    STABLE,
+    TOO_FEW,
+    UNSTABLE,
+    MapFit,
+    forcing_complement,
+    forcing_regressors,
+)
+from .refine import refine_fit
 
 REL_FLOOR = 1e-9  # singular values below this fraction of the data norm are round-off, not signal
 NOISE_FACTOR = 1.5  # noise floor = this times the expected largest singular value of the noise matrix
 PLATEAU_FACTOR = 1.5  # the same safety on the top of the innovation plateau (plateau_floor)
 METHODS = ("ls", "tls", "opt")
-
-STABLE, UNSTABLE, MARGINAL = "stable", "unstable", "marginal"
-INSUFFICIENT, COLLECTING = "insufficient_excitation", "collecting"  # no information / too few periods yet
-TOO_FEW = "too few periods"
-
-
-@dataclass(frozen=True)
-class MapFit:
-    """Result of one identification of the one-period map.
-
-    multipliers : (rank,) complex, sorted by decreasing modulus (empty if not excited).
-    rho_std : float, first-order standard error of rho (inf if it cannot be estimated).
-    singular_values : (k,) of the regressor after removing the forcing (scaled data units).
-    noise_floor : float, singular values below it are treated as noise / round-off.
-    pairs : int, snapshot pairs (periods) in the fit; dof : int, pairs left after forcing and rank.
-    signal_rank : int, significant directions found; rank : int, directions modelled (<= signal_rank).
-    """
-
-    multipliers: np.ndarray
-    rho_std: float
-    singular_values: np.ndarray
-    noise_floor: float
-    pairs: int
-    signal_rank: int
-    rank: int
-    dof: int
-    method: str
-    reason: str = ""  # why the data are insufficient ('' if excited)
-
-    @property
-    def excited(self) -> bool:
-        return self.rank > 0 and not self.reason
-
-    @property
-    def rho(self) -> float:
-        return float(np.abs(self.multipliers[0])) if self.multipliers.size else float("nan")
-
-    @property
-    def resolved(self) -> bool:
-        """Every significant direction of the data is in the model (else the window is too short)."""
-        return self.excited and self.rank == self.signal_rank
-
-    @property
-    def snr(self) -> float:
-        """Largest singular value over the noise floor (> 1 means some transient is visible)."""
-        return float(self.singular_values[0] / self.noise_floor) if self.singular_values.size else 0.0
-
-    def to_dict(self, top: int | None = None) -> dict:
-        mu = self.multipliers if top is None else self.multipliers[:top]
-        return {
-            "multipliers": [[float(z.real), float(z.imag)] for z in mu],
-            "rho": self.rho if self.excited else None,
-            "rho_std": self.rho_std if self.excited and np.isfinite(self.rho_std) else None,
-            "rank": self.rank,
-            "signal_rank": self.signal_rank,
-            "pairs": self.pairs,
-            "dof": self.dof,
-            "snr": self.snr,
-            "method": self.method,
-            "excited": self.excited,
-            "reason": self.reason,
-        }
-
-
-FORCING_KINDS = ("none", "constant", "alternating")
-
-
-def forcing_regressors(forcing: str | int, pairs: int) -> np.ndarray:
-    """Sequences over the pair index j spanning the forcing term d_j, shape (k, pairs).
-
-    'none': no forcing (f = 0, e.g. roll); 'constant': d; 'alternating': (-1)^j d (pitch and yaw, where
-    f(t + T) = -f(t) with T = pi/omega the period of A(t)); an int r: any d that repeats every r periods.
-    """
-    j = np.arange(pairs)
-    if forcing == "none":
-        return np.zeros((0, pairs))
-    if forcing == "constant":
-        return np.ones((1, pairs))
-    if forcing == "alternating":
-        return np.where(j % 2 == 0, 1.0, -1.0)[None, :]
-    if isinstance(forcing, int | np.integer) and not isinstance(forcing, bool) and forcing >= 1:
-        E = np.zeros((int(forcing), pairs))
-        E[j % forcing, j] = 1.0
-        return E
-    raise InputError(f"unknown forcing model {forcing!r} (none, constant, alternating or a period count >= 1)")
-
-
-@lru_cache(maxsize=64)
-def _forcing_complement(pairs: int, forcing: str | int) -> np.ndarray:
-    """Orthonormal basis (pairs, pairs - k) of the sequences orthogonal to the forcing regressors."""
-    E = forcing_regressors(forcing, pairs)
-    return np.eye(pairs) if E.shape[0] == 0 else sla.null_space(E)
 
 
 def noise_floor(row_noise: np.ndarray | None, rows: int, cols: int, data_norm: float) -> float:
@@ -190,7 +109,7 @@ def fit_period_map(
     method : 'ls', 'tls' or 'opt'
         Least squares (consistent under process noise), total least squares (debiased for measurement
         noise, Hemati et al. 2017: both snapshot sets projected on the leading right singular vectors), or
-        'opt': the LS fit refined by variable projection (optimized DMD, :mod:`amb_dynamics.estimate_opt`:
+        'opt': the LS fit refined by variable projection (optimized DMD, :mod:`amb_dynamics.estimator.refine`:
         maximum likelihood for white noise on the snapshots, which the excitation's fast response is).
     max_rank : int
         Largest number of modes modelled.
@@ -213,7 +132,7 @@ def fit_period_map(
     free = pairs - forcing_regressors(forcing, pairs).shape[0]  # pairs left once the forcing is removed
     if free < 1 + min_dof:
         return MapFit(empty, np.inf, np.zeros(0), np.nan, pairs, 0, 0, 0, method, TOO_FEW)
-    Q = _forcing_complement(pairs, forcing)
+    Q = forcing_complement(pairs, forcing)
     Xm, Xp = Z[:, :-1] @ Q, Z[:, 1:] @ Q
     U, s, Vh = np.linalg.svd(Xm, full_matrices=False)
     floor = noise_floor(row_noise, m, free, float(np.linalg.norm(Z, 2)))
@@ -240,8 +159,6 @@ def fit_period_map(
     std = _rho_std(A, Ur.T @ Xm0, Ur.T @ Xp0, vl[:, order[0]], vr[:, order[0]], mu[0], free - rank)
     fit = MapFit(mu, std, s, floor, pairs, signal_rank, rank, free - rank, method)
     if method == "opt":
-        from .estimate_opt import refine_fit  # imports this module: resolved at call time
-
         return refine_fit(Z, fit, forcing)
     return fit
 

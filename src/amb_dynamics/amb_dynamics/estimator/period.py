@@ -3,7 +3,7 @@
 The dominant component of Omega(t) is cut at its mean; the up-crossings (linearly interpolated) give a
 candidate period, which is accepted as the fundamental period T0 once the whole vector Omega(t) repeats
 after it (k up-crossings per period are tried for combined motions).  The period T of A(t) and the forcing
-model follow PHYSICS.md 5: with no roll rate (Omega_x = 0) and a half-wave antisymmetric Omega
+model follow docs/physics.md#base-motion: with no roll rate (Omega_x = 0) and a half-wave antisymmetric Omega
 (Omega(t + T0/2) = -Omega(t), pitch or yaw) A(t) repeats after T0/2 and f(t + T0/2) = -f(t) ('alternating');
 otherwise T = T0, with no forcing for a pure roll and a general periodic forcing else.
 """
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 REPEAT_TOL = 1e-3  # relative RMS mismatch for "Omega repeats after this lag"
 ZERO_RATE = 1e-9  # components below this fraction of the largest are zero (no roll, pure roll)

@@ -6,7 +6,7 @@ T/Ts and the phase offsets are whole numbers of samples, by linear interpolation
 phase vectors of one period into a column (an intra-period delay embedding: with P phases the 4 AMB channels
 observe every lightly damped mode, which is what makes the sensor-only mode work), and every
 P / ``updates_per_period`` phases refits the one-period map over the last ``window`` periods with
-:func:`amb_dynamics.estimate.fit_period_map` (LS DMD on the signal subspace; with ``method='opt'`` the chosen
+:func:`amb_dynamics.estimator.fit.fit_period_map` (LS DMD on the signal subspace; with ``method='opt'`` the chosen
 fit is then refined once by variable projection).  A column may start at any phase, so updates come several
 times per period.  Rows are scaled by their channel's RMS; the measurement noise per channel is given or estimated
 from fourth differences of consecutive samples (robust MAD; a smooth signal at 5 kHz has almost none).
@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InputError
-from .estimate import InstabilityFlag, MapFit, VerdictPolicy, fit_period_map, forcing_regressors
-from .estimate_opt import refine_fit
+from ..errors import InputError
+from .fit import InstabilityFlag, MapFit, VerdictPolicy, fit_period_map, forcing_regressors
+from .refine import refine_fit
 
 SLOT_TOL = 1e-3  # a sample within this fraction of Ts of a phase time is taken as it is
 NOISE_BUFFER = 2048  # fourth differences kept per channel for the noise estimate
@@ -39,7 +39,7 @@ class EstimatorConfig:
         Ts (s), spacing of the incoming samples.
     forcing : str or int
         Model of the base-motion forcing over periods: 'alternating' (pitch, yaw: f(t+T) = -f(t)),
-        'constant', 'none' (roll: f = 0) or a repeat count (see :func:`amb_dynamics.estimate.forcing_regressors`).
+        'constant', 'none' (roll: f = 0) or a repeat count (see :func:`.mapfit.forcing_regressors`).
     phases : int
         P, phases sampled per period (rows of a column = P x channels).
     window : int
@@ -47,7 +47,7 @@ class EstimatorConfig:
     updates_per_period : int
         Refits per period (each starting the columns at another phase).
     method : str
-        'opt' (LS DMD refined by variable projection, :mod:`amb_dynamics.estimate_opt`), 'ls' or 'tls'.
+        'opt' (LS DMD refined by variable projection, :mod:`amb_dynamics.estimator.refine`), 'ls' or 'tls'.
     max_rank : int
         Largest number of modes modelled.
     noise_std : float, sequence or None
