@@ -20,9 +20,8 @@ import time
 
 import pytest
 
-from helpers import run_rig
-
 from amb_ros.env import child_env
+from helpers import run_rig
 from procs import spawn
 
 pytestmark = pytest.mark.ros

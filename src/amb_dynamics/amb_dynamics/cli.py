@@ -127,7 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=None, help="PNG: Bode magnitude per axis with the zone bands")
     from . import unbalance_report  # imports numpy: only once main() has limited the BLAS threads
 
-    unbalance_report.add_parser(sub, _common)
+    unbalance_report.add_parser(sub, _common, grid)
     return ap
 
 

@@ -24,10 +24,8 @@ SCHEMA_VERSION = 1
 SWEEP_POINTS = 1000
 
 
-def add_parser(sub, common) -> None:
-    """The ``unbalance`` subcommand (``common`` adds --config, --set, --json)."""
-    from .cli import grid
-
+def add_parser(sub, common, grid) -> None:
+    """The ``unbalance`` subcommand (``common`` adds --config, --set, --json; ``grid`` parses lo:hi:n)."""
     p = sub.add_parser("unbalance", help="steady-state unbalance response (amplitude, phase) at spin speeds")
     common(p)
     p.add_argument("--speed-rpm", type=float, nargs="+", default=None, help="speeds (default: the config's spin)")
