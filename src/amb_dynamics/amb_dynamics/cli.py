@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import analysis
+from . import analysis, guards
 from .errors import AmbError
 
 
@@ -18,7 +18,7 @@ def grid(text: str) -> np.ndarray:
     try:
         if ":" in text:
             lo, hi, n = text.split(":")
-            if int(n) < 1:
+            if not 1 <= int(n) <= 1_000_000:
                 raise ValueError
             return np.linspace(float(lo), float(hi), int(n))
         return np.array([float(v) for v in text.split(",")])
@@ -121,12 +121,16 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     # the chart writes its own JSON file; --json there also prints the summary
     try:
+        guards.check_args(args)
         result, text = getattr(analysis, f"run_{args.verb}")(args)
     except AmbError as exc:
         print(f"amb-dynamics {args.verb}: error: {exc}", file=sys.stderr)
         return 2
     if args.json:
-        json.dump(result, sys.stdout, indent=1)
+        result, replaced = guards.finite_json(result)  # JSON has no NaN: null, and say where
+        if replaced:
+            result["non_finite"] = replaced
+        json.dump(result, sys.stdout, indent=1, allow_nan=False)
         print()
     else:
         print(text)
