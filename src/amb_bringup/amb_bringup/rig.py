@@ -30,6 +30,7 @@ from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds, hold_run_l
 
 from .domain import Watch, describe, foreign_publishers, topics_of
 from .processes import all_specs
+from .rig_args import check_rig_args, refuse
 from .summary import build_summary, format_summary
 from .supervisor import Supervisor, describe_exit
 
@@ -95,21 +96,23 @@ class Interrupted:
 def main(argv: list[str] | None = None) -> None:
     args = parser().parse_args(argv)
     try:
+        check_rig_args(args)  # every argument before anything starts (docs/exit-codes.md: 2)
         ensure_localhost_dds()
         cfg = load_config(args.config, args.set)  # validate before starting anything
-        lock = hold_run_lock(os.environ["ROS_DOMAIN_ID"], LOCK_WAIT_S, _say_waiting)
     except (AmbError, DdsEnvError) as exc:
-        raise SystemExit(f"amb-rig: {exc}") from None
-    if args.duration <= 0 and not args.no_plant:
-        raise SystemExit("amb-rig: --duration must be > 0 s")
+        refuse(f"amb-rig: {exc}")
     if args.rt_priority is None:
         args.rt_priority = 20 if args.mode == "realtime" else 0
     if args.rt_priority and args.mode == "lockstep" and (args.bag or not args.no_monitor):
         # measured: the loop then runs ~40 % faster, and the monitor and recorder fall behind and lose samples
-        raise SystemExit(
+        refuse(
             "amb-rig: --rt-priority in lockstep needs --no-monitor and no --bag (a SCHED_FIFO loop "
             "starves them: they would lose samples)"
         )
+    try:
+        lock = hold_run_lock(os.environ["ROS_DOMAIN_ID"], LOCK_WAIT_S, _say_waiting)
+    except (AmbError, DdsEnvError) as exc:
+        refuse(f"amb-rig: {exc}")
     sys.exit(run(args, cfg, lock))
 
 

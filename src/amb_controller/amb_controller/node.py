@@ -218,8 +218,8 @@ class ControllerNode(RigNode):
         return (WARN if notes else OK), text
 
     def values(self) -> dict[str, str]:
+        self.counters.published[m.CURRENT] = self.answered + self.safe_ticks  # before it is read: never stale
         out = self.common_values()
-        self.counters.published[m.CURRENT] = self.answered + self.safe_ticks
         out.update(
             {
                 "sensor state": self.sensor_state,

@@ -20,7 +20,7 @@ MAX_FREQUENCY_RAD_S = 1e5  # base motion faster than this is far beyond any vehi
 MAX_SPEED_RPM = 1e6
 MAX_CHART_POINTS = 1_000_000  # 100 x 100 takes ~2 s here: a million points is already minutes
 MAX_SIMULATE_STEPS = 2_000_000
-MAX_SAMPLED_STEPS = 200_000  # controller samples in one sampled-data analysis (step maps held in memory)
+MAX_SAMPLED_STEPS = 60_000  # controller samples of one sampled-data analysis: ~3.5 ms each here, ~3.5 min
 MAX_HORIZON_S = 1e4
 IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
 
