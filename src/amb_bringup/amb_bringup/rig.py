@@ -8,8 +8,8 @@ domain already carries the topics this run publishes (another rig, an orphan, a 
 (extras, base_motion, controller, plant), wait (bounded by --start-timeout) until every node reports on
 /diagnostics and the plant reports that it runs (the plant itself waits until controller and base motion are
 matched), then wait for the plant to finish its --duration (or, with --no-plant, for --duration of wall time),
-stop everything cleanly and print the summary.  Exit code 0 only if every process ran and ended as expected
-and no node ended with an ERROR diagnostic; 1 otherwise; 2 for bad arguments; 130/143 when interrupted.
+stop everything cleanly and print the summary and its verdict line.  Exit codes: docs/exit-codes.md (0 ran as
+asked, whatever the result; 1 failed or untrustworthy; 2 bad arguments; 3 a --fail-on result; 128+n signal n).
 """
 
 from __future__ import annotations
@@ -33,6 +33,8 @@ from .processes import all_specs
 from .rig_args import check_rig_args, refuse
 from .summary import build_summary, format_summary
 from .supervisor import Supervisor, describe_exit
+from .verdict import add_arguments as add_verdict_arguments
+from .verdict import judge_verdict
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
 # after a node died, the plant may take its command timeout (10 s) and then up to 2 s for each of its three data
@@ -76,6 +78,8 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--bag", help="record the run with amb-bag into this folder")
     r.add_argument("--no-monitor", action="store_true", help="do not start the stability monitor")
     r.add_argument("--log-dir", help="folder for the node logs and params file (default: a new temp folder)")
+    r.add_argument("--keep-logs", action="store_true", help="keep the temp log folder of a run that went well")
+    add_verdict_arguments(r)
     r.add_argument("--start-timeout", type=float, default=60.0, help="bound on start-up and connection (s)")
     r.add_argument("--timeout", type=float, help="bound on the whole run (wall s; default from the duration)")
     return ap
@@ -111,8 +115,8 @@ def main(argv: list[str] | None = None) -> None:
         )
     try:
         lock = hold_run_lock(os.environ["ROS_DOMAIN_ID"], LOCK_WAIT_S, _say_waiting)
-    except (AmbError, DdsEnvError) as exc:
-        refuse(f"amb-rig: {exc}")
+    except (AmbError, DdsEnvError) as exc:  # the domain is in use: not bad input, a run that could not happen
+        raise SystemExit(f"amb-rig: {exc}") from None
     sys.exit(run(args, cfg, lock))
 
 
@@ -175,10 +179,14 @@ def run(args, cfg, lock) -> int:
         "interrupted": interrupted.signum is not None,
     }
     summary = build_summary(run_info, sup.children, collector, errors)
-    print(json.dumps(summary, indent=2) if args.json else format_summary(summary), flush=True)
+    verdict = judge_verdict(summary, args)  # the whole run's verdict and exit code (docs/exit-codes.md)
+    summary.update(ok=not verdict.failures, errors=verdict.failures, verdict=verdict.to_dict())
+    print(json.dumps(summary, indent=2) if args.json else f"{format_summary(summary)}\n{verdict.line}", flush=True)
+    if not args.log_dir and not args.keep_logs and verdict.exit_code == 0 and interrupted.signum is None:
+        shutil.rmtree(log_dir, ignore_errors=True)  # a clean run leaves no /tmp/amb-rig-* behind
     if interrupted.signum is not None:
         return 128 + interrupted.signum
-    return 0 if summary["ok"] else EXIT_FAILED
+    return verdict.exit_code
 
 
 def _g(value, default) -> str:

@@ -16,6 +16,7 @@ import yaml
 from amb_dynamics.errors import AmbError
 
 from .processes import NODES
+from .verdict import check_limits
 
 MAX_DURATION_S = 1e6
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.]*\Z")
@@ -79,6 +80,8 @@ def check_rig_args(args) -> None:
         raise RigArgError(f"--log-dir {args.log_dir} exists and is not a folder")
     for item in args.param:
         check_param(item)
+    if complaint := check_limits(args):
+        raise RigArgError(complaint)
 
 
 def refuse(message: str):
