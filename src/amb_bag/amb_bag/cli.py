@@ -125,7 +125,8 @@ def main(argv: list[str] | None = None) -> None:
         print(f"amb-bag {args.command}: {exc}", file=sys.stderr)
         rc = EXIT_BAD_INPUT
     except OSError as exc:  # the disk filled or vanished under a command that writes
-        print(f"amb-bag {args.command}: {getattr(exc, 'filename', None) or ''}: {exc.strerror or exc}", file=sys.stderr)
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"amb-bag {args.command}: {where}{exc.strerror or exc}", file=sys.stderr)
         rc = 1
     except BrokenPipeError:  # `amb-bag info | head`
         rc = 0

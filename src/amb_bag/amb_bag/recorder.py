@@ -244,6 +244,20 @@ class Recorder:
         else:
             self.diagnostics.publish(bytes([level]), message, values)
 
+    def report_write_error(self, exc: OSError) -> None:
+        """Publish the final status as an ERROR: the error, what reached the disk, the loss known so far."""
+        rows = self.loss.table(self.received_from_others(), self.gaps.missing())
+        received = sum(self.received_from_others().values())
+        on_disk = sum(self.writer._on_disk)  # messages in chunks already on disk (what `check` will recover)
+        values = {"write error": f"{exc.strerror or exc} ({getattr(exc, 'filename', '') or self.opts.output})",
+                  "received": str(received), "lost total": str(sum(r["lost"] or 0 for r in rows.values()))}  # fmt: skip
+        values["messages on disk"] = str(on_disk)
+        message = (f"write error: {exc.strerror or exc}; the bag is incomplete: {on_disk} of {received} messages "
+                   f"received reached the disk, lost at least {received - on_disk}; run `amb-bag check`")  # fmt: skip
+        if self.diagnostics is not None:
+            with contextlib.suppress(Exception):
+                self.diagnostics.publish_final(bytes([2]), message, values)
+
     def finish(self) -> dict:
         """Close the bag with the loss table in custom_data; returns the loss rows."""
         table = self.loss.table(self.received_from_others(), self.gaps.missing())
@@ -308,6 +322,9 @@ def record(opts: RecordOptions) -> dict:
         recorder.spin()
         rows = recorder.finish()
         recorder.publish_status(rows, final=True)  # after the bag is closed: amb-rig's summary reads it
+    except OSError as exc:  # disk full, folder gone: the row is an ERROR with what is lost, then one line
+        recorder.report_write_error(exc)
+        raise OSError(exc.errno, f"{exc.strerror}; the bag is incomplete, run `amb-bag check`", str(opts.output))
     finally:
         if rows is None:  # a bug stopped the recording: still finish the file rather than leave it open
             with contextlib.suppress(Exception):

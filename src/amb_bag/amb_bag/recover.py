@@ -137,6 +137,16 @@ def salvage_file(path: Path) -> _FileScan:
 def _rewrite(scan: _FileScan) -> None:
     """Write the salvaged messages to a new file with the original schemas and channels, then swap it in."""
     tmp = scan.path.with_name(scan.path.name + ".recovering")
+    try:
+        _write_salvaged(tmp, scan)
+    except OSError:
+        tmp.unlink(missing_ok=True)  # disk full: nothing half-written is left, the original stays as it was
+        raise
+    os.replace(scan.path, scan.path.with_name(scan.path.name + ".damaged"))
+    os.replace(tmp, scan.path)
+
+
+def _write_salvaged(tmp: Path, scan: _FileScan) -> None:
     with open(tmp, "wb") as f:
         writer = Writer(f)
         writer.start(profile=PROFILE, library=LIBRARY + " (recovered)")
@@ -150,8 +160,6 @@ def _rewrite(scan: _FileScan) -> None:
         for cid, m in scan.messages:
             writer.add_message(channel_ids[cid], m.log_time, m.data, m.publish_time, m.sequence)
         writer.finish()
-    os.replace(scan.path, scan.path.with_name(scan.path.name + ".damaged"))
-    os.replace(tmp, scan.path)
 
 
 def _progress(bag_dir: Path) -> dict:
