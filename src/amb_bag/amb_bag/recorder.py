@@ -324,7 +324,9 @@ def record(opts: RecordOptions) -> dict:
         recorder.publish_status(rows, final=True)  # after the bag is closed: amb-rig's summary reads it
     except OSError as exc:  # disk full, folder gone: the row is an ERROR with what is lost, then one line
         recorder.report_write_error(exc)
-        raise OSError(exc.errno, f"{exc.strerror}; the bag is incomplete, run `amb-bag check`", str(opts.output))
+        raise OSError(
+            exc.errno, f"{exc.strerror}; the bag is incomplete, run `amb-bag check`", str(opts.output)
+        ) from None
     finally:
         if rows is None:  # a bug stopped the recording: still finish the file rather than leave it open
             with contextlib.suppress(Exception):
