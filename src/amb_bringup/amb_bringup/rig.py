@@ -27,6 +27,7 @@ from pathlib import Path
 from amb_dynamics.config import load_config
 from amb_dynamics.errors import AmbError
 from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds, hold_run_lock
+from amb_ros.shm_clean import clean_stale_shm
 
 from .domain import Watch, describe, foreign_publishers, topics_of
 from .processes import all_specs
@@ -117,6 +118,7 @@ def main(argv: list[str] | None = None) -> None:
         lock = hold_run_lock(os.environ["ROS_DOMAIN_ID"], LOCK_WAIT_S, _say_waiting)
     except (AmbError, DdsEnvError) as exc:  # the domain is in use: not bad input, a run that could not happen
         raise SystemExit(f"amb-rig: {exc}") from None
+    clean_stale_shm()  # a killed run's Fast DDS segments (nobody holds their locks); a live run's stay
     sys.exit(run(args, cfg, lock))
 
 
