@@ -30,6 +30,7 @@ from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds, hold_run_l
 from amb_ros.shm_clean import clean_stale_shm
 
 from .domain import Watch, describe, foreign_publishers, topics_of
+from .liveness import DeathWatch
 from .processes import all_specs
 from .rig_args import check_rig_args, refuse
 from .summary import build_summary, format_summary
@@ -38,9 +39,6 @@ from .verdict import add_arguments as add_verdict_arguments
 from .verdict import judge_verdict
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
-# after a node died, the plant may take its command timeout (10 s) and then up to 2 s for each of its three data
-# writers and 2 s for its final diagnostics to be acknowledged before it exits on its own: 18 s at most
-PEER_DEATH_GRACE_S = 20.0
 LOCK_WAIT_S = 10.0  # for the domain's previous run to end: its nodes may still be exiting (bounded ack waits)
 
 
@@ -241,17 +239,14 @@ def wait_run(args, sup: Supervisor, collector, interrupted, watch: Watch) -> lis
         time.sleep(0.05)
     run_start = time.monotonic() - plant_running_for(collector, plant)
     limit = args.timeout if args.timeout else default_timeout(args)
-    grace_end = None
+    deaths = DeathWatch(sup)  # a node's death is the run's first error, noticed at once (liveness.py)
     while interrupted.signum is None:
         if plant is not None and plant.poll() is not None:
             break
         if intruder := watch.check():
             return [intruder]
-        if sup.died_early():
-            # a peer died: give the plant time to notice (command timeout) and report it before stopping it
-            grace_end = grace_end or time.monotonic() + (PEER_DEATH_GRACE_S if plant is not None else 0.0)
-            if time.monotonic() >= grace_end:
-                break
+        if deaths.poll():
+            return [deaths.first]
         if (plant is None or not plant.spec.ends_run) and time.monotonic() - run_start >= args.duration:
             break  # realtime or --no-plant: amb-rig ends the run after --duration of wall time
         if time.monotonic() - run_start > limit:
