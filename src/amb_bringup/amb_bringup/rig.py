@@ -151,6 +151,7 @@ def run(args, cfg, lock) -> int:
         return EXIT_FAILED
     watch = Watch(collector.node, topics, domain)
     sup = Supervisor(log_dir, child_env(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1"), (lock.fileno(),))
+    collector.accept_pids = lambda: {c.pid for c in sup.children}  # only this run's reports (not a replay's)
     errors: list[str] = []
     t0 = time.monotonic()
     try:
@@ -179,6 +180,8 @@ def run(args, cfg, lock) -> int:
         "interrupted": interrupted.signum is not None,
     }
     summary = build_summary(run_info, sup.children, collector, errors)
+    if collector.foreign:
+        summary["foreign_diagnostics"] = dict(collector.foreign)
     verdict = judge_verdict(summary, args)  # the whole run's verdict and exit code (docs/exit-codes.md)
     summary.update(ok=not verdict.failures, errors=verdict.failures, verdict=verdict.to_dict())
     print(json.dumps(summary, indent=2) if args.json else f"{format_summary(summary)}\n{verdict.line}", flush=True)

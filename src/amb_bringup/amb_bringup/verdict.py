@@ -108,6 +108,9 @@ def _result(summary: dict, args) -> tuple[str, str, list[str]]:
     warnings = []
     if lost := _f(mon, "samples lost"):
         warnings.append(f"the monitor lost {lost:.0f} samples")
+    if foreign := summary.get("foreign_diagnostics"):
+        names = ", ".join(f"{k} ({n})" for k, n in sorted(foreign.items()))
+        warnings.append(f"ignored /diagnostics from processes outside this run: {names}")
     gap = _f(plant, "air gap (m)")
     peaks = [p["m"] for p in (summary.get("peak_displacement") or {}).values() if p.get("m") is not None]
     peak = max(peaks) if peaks else None
