@@ -94,6 +94,9 @@ def trust_failures(summary: dict, args) -> list[str]:
                        f"({100 * fraction:.2f} % > {100 * args.max_command_loss:g} %)")  # fmt: skip
     if zeroed and rate and zeroed / rate > args.max_zero_current:
         out.append(f"{zeroed / rate:.3g} s at zero current (rotor not levitated; limit {args.max_zero_current:g} s)")
+    if duplicates := _f(plant, "duplicate commands"):
+        out.append(f"{duplicates:.0f} duplicate commands for one step reached the plant: a second publisher on "
+                   "/amb/current, and which command was applied cannot be told")  # fmt: skip
     foreign = _f(plant, "foreign commands applied")
     if foreign:
         out.append(f"{foreign:.0f} foreign commands were applied to the plant (see the intruders in the log)")
