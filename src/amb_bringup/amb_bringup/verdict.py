@@ -111,6 +111,10 @@ def _result(summary: dict, args) -> tuple[str, str, list[str]]:
     warnings = []
     if lost := _f(mon, "samples lost"):
         warnings.append(f"the monitor lost {lost:.0f} samples")
+    if foreign_samples := _f(ctl, "samples out of window"):
+        warnings.append(
+            f"the controller rejected {foreign_samples:.0f} samples stamped far ahead of the run (foreign?)"
+        )
     if foreign := summary.get("foreign_diagnostics"):
         names = ", ".join(f"{k} ({n})" for k, n in sorted(foreign.items()))
         warnings.append(f"ignored /diagnostics from processes outside this run: {names}")
