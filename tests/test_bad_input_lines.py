@@ -50,6 +50,24 @@ def _eight_byte_bag(tmp: Path) -> Path:
     return bag
 
 
+def _undecodable_bag(tmp: Path) -> Path:
+    """A ros2-profile MCAP whose one /amb/displacement message is not a JointState."""
+    from mcap.writer import Writer
+
+    from amb_bag import msgdefs
+
+    path = tmp / "garbage.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start(profile="ros2", library="test")
+        text = msgdefs.full_text("sensor_msgs/msg/JointState").encode()
+        sid = w.register_schema("sensor_msgs/msg/JointState", "ros2msg", text)
+        cid = w.register_channel("/amb/displacement", "cdr", sid)
+        w.add_message(cid, 1, b"\x00\x01\x00\x00\xff\xff\xff\x7f", 1)
+        w.finish()
+    return path
+
+
 # (id, runner, argv builder (tmp -> argv), words the line must contain)
 CASES = [
     (
@@ -175,6 +193,12 @@ CASES = [
         lambda t: ["analyze", str(_eight_byte_bag(t))],
         ["sample_pitch_0.mcap", "truncated"],
     ),
+    (
+        "plot-undecodable-message",
+        _bag,
+        lambda t: ["plot", str(_undecodable_bag(t)), "--out", str(t / "p.png")],
+        ["/amb/displacement", "cannot be decoded"],
+    ),
     ("play-rate-1e-300", _bag, lambda t: ["play", str(SAMPLE_BAG), "--rate", "1e-300"], ["--rate"]),
     ("play-delay-negative", _bag, lambda t: ["play", str(SAMPLE_BAG), "--delay", "-1"], ["--delay"]),
     ("play-delay-nan", _bag, lambda t: ["play", str(SAMPLE_BAG), "--delay", "nan"], ["--delay"]),
@@ -207,7 +231,7 @@ def test_bad_input_is_one_line_and_exit_2(runner, make, words, tmp_path, capsys,
     work = tmp_path / "in"
     work.mkdir()
     argv = make(work)
-    before = sorted(p.name for p in work.iterdir())
+    before = sorted(p.name for p in work.iterdir())  # inputs the builder wrote
     monkeypatch.setattr(sys, "argv", ["prog", *argv])
     try:
         code = runner(argv)
