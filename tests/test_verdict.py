@@ -104,3 +104,11 @@ def test_unknown_fail_on_result_is_refused():
     with pytest.raises(SystemExit) as exc:
         _args("--fail-on", "unstable,wobbly")
     assert exc.value.code == 2
+
+
+def test_tainted_ok_marks_instead_of_failing():
+    summary = _summary({"duplicate commands": "3"}, {}, dict(STABLE_MON))
+    assert judge_verdict(summary, _args()).exit_code == EXIT_FAILED
+    v = judge_verdict(_summary({"duplicate commands": "3"}, {}, dict(STABLE_MON)), _args("--tainted-ok"))
+    assert v.exit_code == EXIT_OK and v.line.startswith("verdict: stable")
+    assert "[TAINTED: 3 duplicate commands for one step" in v.line

@@ -30,6 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "its steps failed (default 0.01)")  # fmt: skip
     parser.add_argument("--max-zero-current", type=float, default=0.0, metavar="S",
                         help="a run with more than S s at zero current (commands lost) failed (default 0)")  # fmt: skip
+    parser.add_argument("--tainted-ok", action="store_true",
+                        help="a run where foreign commands reached the plant is TAINTED, not failed")  # fmt: skip
     parser.add_argument("--saturation-limit", type=float, default=0.0, metavar="FRACTION",
                         help="report saturation above this fraction of steps (default 0)")  # fmt: skip
 
@@ -77,10 +79,22 @@ def _values(summary: dict, node: str) -> dict:
     return summary.get("nodes", {}).get(node, {}).get("values", {}) or {}
 
 
+def taint(summary: dict) -> list[str]:
+    """Foreign commands that reached the plant (a failure, or with ``--tainted-ok`` a TAINTED mark)."""
+    plant = _values(summary, "plant")
+    out = []
+    if duplicates := _f(plant, "duplicate commands"):
+        out.append(f"{duplicates:.0f} duplicate commands for one step reached the plant: a second publisher on "
+                   "/amb/current, and which command was applied cannot be told")  # fmt: skip
+    if foreign := _f(plant, "foreign commands applied"):
+        out.append(f"{foreign:.0f} foreign commands were applied to the plant (see the intruders in the log)")
+    return out
+
+
 def trust_failures(summary: dict, args) -> list[str]:
     """Reasons the run's data cannot be trusted (beyond the node errors amb-rig already found)."""
     plant, ctl = _values(summary, "plant"), _values(summary, "controller")
-    out = []
+    out = [] if getattr(args, "tainted_ok", False) else taint(summary)
     lost = _f(ctl, "samples lost")
     if args.mode == "lockstep" and lost:
         out.append(f"the controller lost {lost:.0f} displacement samples in lockstep (any loss there is a failure)")
@@ -94,12 +108,6 @@ def trust_failures(summary: dict, args) -> list[str]:
                        f"({100 * fraction:.2f} % > {100 * args.max_command_loss:g} %)")  # fmt: skip
     if zeroed and rate and zeroed / rate > args.max_zero_current:
         out.append(f"{zeroed / rate:.3g} s at zero current (rotor not levitated; limit {args.max_zero_current:g} s)")
-    if duplicates := _f(plant, "duplicate commands"):
-        out.append(f"{duplicates:.0f} duplicate commands for one step reached the plant: a second publisher on "
-                   "/amb/current, and which command was applied cannot be told")  # fmt: skip
-    foreign = _f(plant, "foreign commands applied")
-    if foreign:
-        out.append(f"{foreign:.0f} foreign commands were applied to the plant (see the intruders in the log)")
     if args.no_plant and args.mode == "lockstep" and ctl and not _f(ctl, "samples answered"):
         out.append("--no-plant: no rig answered; the controller waited for /amb/displacement and got no sample")
     return out
@@ -172,4 +180,7 @@ def judge_verdict(summary: dict, args) -> Verdict:
         code = EXIT_FAIL_ON if results & set(args.fail_on) else EXIT_OK
     if warnings:
         line += "  [WARN: " + "; ".join(warnings) + "]"
+    if getattr(args, "tainted_ok", False) and (tainted := taint(summary)):
+        line += "  [TAINTED: " + "; ".join(tainted) + "]"
+        warnings = warnings + tainted
     return Verdict(line, result, failures, warnings, code)
