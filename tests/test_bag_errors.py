@@ -75,9 +75,14 @@ REPAIRABLE = {("check", "truncated_bag"), ("check", "truncated_metadata")}
 
 
 def _run(args, capsys):
+    """(exit code, captured output); a refusal (exit 2) returns its one stderr line instead of the code."""
     with pytest.raises(SystemExit) as exc:
         cli.main(args)
-    return exc.value.code, capsys.readouterr()
+    out = capsys.readouterr()
+    if exc.value.code == cli.EXIT_BAD_INPUT and out.err:
+        assert out.err.count("\n") == 1, out.err  # exactly one line
+        return out.err.rstrip("\n"), out
+    return exc.value.code, out
 
 
 @pytest.mark.parametrize(
@@ -117,7 +122,7 @@ def test_cli_process_prints_one_line_without_traceback(tmp_path):
     path = _make("foreign_file", tmp_path)
     amb_bag = Path(sys.executable).parent / "amb-bag"
     proc = subprocess.run([str(amb_bag), "info", str(path)], capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 1
+    assert proc.returncode == 2  # bad input (docs/exit-codes.md)
     assert proc.stderr.strip() == f"amb-bag info: {path} is not an MCAP file"
     assert "Traceback" not in proc.stderr and proc.stdout == ""
 

@@ -8,7 +8,8 @@
     amb-bag plot BAG --out run.png [--config rotor.yaml]
     amb-bag sensitivity BAG --axis amb1_y [--config F] [--set K=V] [--band lo:hi] [--json] [--out S.png]
 
-User errors (missing, empty, truncated or foreign files, bad options) print one line and exit 1.
+User errors (missing, empty, truncated or foreign files, bad options) print one line and exit 2; a write
+error (disk full) prints one line and exits 1.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import sys
 from .errors import BagError
 
 EXIT_DAMAGED = 2
+EXIT_BAD_INPUT = 2
 
 
 def _cmd_record(args) -> int:
@@ -137,8 +139,13 @@ def main(argv: list[str] | None = None) -> None:
     args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
     try:
         rc = args.func(args)
-    except BagError as exc:
-        raise SystemExit(f"amb-bag {args.command}: {exc}") from None
+    except BagError as exc:  # bad input or refusal: one line, exit 2 (docs/exit-codes.md)
+        print(f"amb-bag {args.command}: {exc}", file=sys.stderr)
+        rc = EXIT_BAD_INPUT
+    except OSError as exc:  # the disk filled or vanished under a command that writes
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"amb-bag {args.command}: {where}{exc.strerror or exc}", file=sys.stderr)
+        rc = 1
     except BrokenPipeError:  # `amb-bag info | head`
         rc = 0
     raise SystemExit(rc)

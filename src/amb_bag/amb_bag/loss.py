@@ -73,32 +73,64 @@ class LossTracker:
             total[topic] = total.get(topic, 0) + count
         return total
 
-    def table(self, received: dict[str, int]) -> dict[str, dict]:
+    def table(self, received: dict[str, int], gaps: dict[str, int] | None = None) -> dict[str, dict]:
         """Per topic: received, published (None if unreported), lost and extra (None if unknown)."""
-        return loss_table(received, self.published())
+        return loss_table(received, self.published(), gaps)
 
 
-def loss_table(received: dict[str, int], published: dict[str, int]) -> dict[str, dict]:
-    """Per-topic loss rows from received and published counts (see the module docstring)."""
+def loss_table(received: dict[str, int], published: dict[str, int], gaps: dict[str, int] | None = None) -> dict:
+    """Per-topic loss rows from received and published counts (see the module docstring).
+
+    ``gaps``: the recorder's own count of samples missing from the stamp grid of a per-step topic
+    (:mod:`amb_bag.stamp_gaps`); a row's ``lost`` is the larger of the two counts, and with no published count
+    it is the gap count (a lower bound: losses after the last stamp received are not seen).
+    """
     rows = {}
+    gaps = gaps or {}
     for topic in sorted(set(received) | set(published)):
-        got, sent = received.get(topic, 0), published.get(topic)
+        got, sent, gap = received.get(topic, 0), published.get(topic), gaps.get(topic)
+        lost = None if sent is None else max(0, sent - got)
+        if gap is not None:
+            lost = gap if lost is None else max(lost, gap)
         rows[topic] = {
             "received": got,
             "published": sent,
-            "lost": None if sent is None else max(0, sent - got),
+            "lost": lost,
             "extra": None if sent is None else max(0, got - sent),
         }
+        if gap:  # only when the recorder saw a gap of its own
+            rows[topic]["stamp_gaps"] = gap
     return rows
 
 
 def total_lost(rows: dict[str, dict]) -> int:
+    """Sum of the known losses; see :func:`unknown_topics` for the rows whose loss nobody can tell."""
     return sum(r["lost"] or 0 for r in rows.values())
+
+
+def unknown_topics(rows: dict[str, dict]) -> list[str]:
+    """Topics whose loss is unknown (no publisher reports a count, no stamp grid): never summed as 0."""
+    return [t for t, r in rows.items() if r["lost"] is None]
+
+
+def total_text(rows: dict[str, dict]) -> str:
+    """``lost in total: N``, and which topics' loss is unknown (instead of counting them as 0)."""
+    unknown = unknown_topics(rows)
+    if not unknown:
+        return f"lost in total: {total_lost(rows)}"
+    shown = ", ".join(unknown[:6]) + (", ..." if len(unknown) > 6 else "")
+    if len(unknown) == len(rows):
+        return f"lost in total: unknown (no count for {shown})"
+    return (
+        f"lost in total: {total_lost(rows)} on {len(rows) - len(unknown)} topics; unknown on {len(unknown)} "
+        f"without a count ({shown})"
+    )
 
 
 def custom_data(rows: dict[str, dict]) -> dict[str, str]:
     """The metadata.yaml custom_data entries (strings, as rosbag2 requires) for the loss rows."""
-    return {CUSTOM_KEY: json.dumps(rows, separators=(",", ":")), CUSTOM_TOTAL_KEY: str(total_lost(rows))}
+    total = str(total_lost(rows)) if not unknown_topics(rows) else f"at least {total_lost(rows)} (some unknown)"
+    return {CUSTOM_KEY: json.dumps(rows, separators=(",", ":")), CUSTOM_TOTAL_KEY: total}
 
 
 def format_table(rows: dict[str, dict]) -> str:
@@ -112,5 +144,5 @@ def format_table(rows: dict[str, dict]) -> str:
         lost = "?" if r["lost"] is None else str(r["lost"])
         extra = "?" if r["extra"] is None else str(r["extra"])
         lines.append(f"{topic:<{width}}  {r['received']:>9}  {sent:>9}  {lost:>7}  {extra:>6}")
-    lines.append(f"lost in total: {total_lost(rows)}")
+    lines.append(total_text(rows))
     return "\n".join(lines)

@@ -39,10 +39,13 @@ class PlayOptions:
 
 def play(opts: PlayOptions) -> int:
     """Play the bag; returns the number of messages published (stops cleanly on SIGINT/SIGTERM)."""
-    if not opts.rate > 0:
-        raise BagError(f"--rate must be positive, got {opts.rate}")
-    if opts.clock_hz is not None and not opts.clock_hz > 0:
-        raise BagError(f"--clock must be positive, got {opts.clock_hz}")
+    if not 1e-3 <= opts.rate <= 1e6:  # also refuses NaN; 1e-300 would ask to sleep past the end of time
+        raise BagError(f"--rate must be in 0.001..1e6, got {opts.rate}")
+    if opts.clock_hz is not None and not 0 < opts.clock_hz <= 1e5:
+        raise BagError(f"--clock must be in (0, 1e5] Hz, got {opts.clock_hz}")
+    for name, value in (("--delay", opts.start_delay_s), ("--wait-for-subscribers", opts.wait_subscribers_s)):
+        if not 0 <= value <= 3600:
+            raise BagError(f"{name} must be in 0..3600 s, got {value}")
     bag = Bag(opts.bag)
     topics = [t for t in bag.select(opts.topics) if bag.topics[t].message_count]  # nothing to publish otherwise
     if opts.clock_hz is not None:

@@ -49,7 +49,11 @@ def read_series(bag: Bag) -> dict:
     rows: dict[str, list] = {t: [] for t in present}
     names: dict[str, list[str]] = {}
     for topic, type_name, log_ns, _pub, data in bag.messages(present):
-        msg = deserialize_message(data, msgdefs.message_class(type_name))
+        try:
+            msg = deserialize_message(data, msgdefs.message_class(type_name))
+        except Exception as exc:  # rclpy raises plain exceptions for undecodable CDR
+            raise BagError(f"{bag.dir}: a {topic} message at {log_ns} ns cannot be decoded as {type_name} "
+                           f"({type(exc).__name__})") from None  # fmt: skip
         if topic == "/clock":
             rows[topic].append((log_ns, msg.clock.sec + 1e-9 * msg.clock.nanosec))
         elif topic == "/amb/displacement":

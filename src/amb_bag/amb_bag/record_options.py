@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -71,6 +72,15 @@ def options_from_args(args: argparse.Namespace) -> RecordOptions:
             raise BagError(f"--{name.replace('_', '-')} must be positive, got {value}")
     if not 0 <= args.batch <= 1000:
         raise BagError(f"--batch must be in 0..1000 ms, got {args.batch}")
+    for pattern in args.exclude:
+        try:
+            re.compile(pattern)
+        except re.error as exc:
+            raise BagError(f"--exclude {pattern!r} is not a regular expression ({exc.msg})") from None
+    for name in ("flush_interval", "progress_interval", "discovery_interval", "duration", "split_duration"):
+        value = getattr(args, name)
+        if value is not None and not value < 1e7:  # also NaN: `not nan > 0` above, `not nan < 1e7` here
+            raise BagError(f"--{name.replace('_', '-')} must be below 1e7 s, got {value}")
     return RecordOptions(
         output=args.output, topics=args.topics, include_hidden=args.include_hidden, compression=args.compression,
         chunk_size=args.chunk_size, split_size_mb=args.split_size, split_duration_s=args.split_duration,

@@ -38,6 +38,7 @@ from .errors import BagError
 from .loss import DIAGNOSTICS_TOPIC, RECORDER_NAME, LossTracker, custom_data, format_table
 from .qos import RECORD_DEPTH, profile_to_dict, request_for_offers
 from .record_options import PRIORITIES, RecordOptions, add_record_arguments, options_from_args
+from .stamp_gaps import GRID_TOPICS, StampGaps
 from .writer import BagWriter
 
 DRAIN_BATCH = 2000  # messages taken from one subscription before the others get a turn
@@ -62,6 +63,7 @@ class Recorder:
         self.node, self.opts, self.writer, self.log = node, opts, writer, log
         self.diagnostics = diagnostics  # amb_ros.diagnostics.Diagnostics or None
         self.loss = LossTracker()
+        self.gaps = StampGaps()  # the recorder's own count of missed samples on the per-step topics
         self.own_reports = 0  # this recorder's /diagnostics messages that it recorded
         self.subs: list[_Sub] = []
         self.by_topic: dict[str, _Sub] = {}
@@ -117,7 +119,7 @@ class Recorder:
         profiles = [profile_to_dict(i.qos_profile) for i in infos]
         type_hash = str(infos[0].topic_type_hash)
         tid = self.writer.add_topic(topic, type_name, profiles, type_hash if type_hash.startswith("RIHS") else "")
-        sub = _Sub(topic, type_name, cls, tid, topic == DIAGNOSTICS_TOPIC, profiles)
+        sub = _Sub(topic, type_name, cls, tid, topic == DIAGNOSTICS_TOPIC, profiles, on_grid=topic in GRID_TOPICS)
         sub.publishers = self.node.count_publishers(topic)
         self._create(sub)
         self.subs.append(sub)
@@ -162,6 +164,8 @@ class Recorder:
             write(tid, recv, data, info["source_timestamp"] or recv, info["publication_sequence_number"] & 0xFFFFFFFF)
             if sub.is_diagnostics and self.loss.update_from_cdr(data, self.node.get_name()):
                 self.own_reports += 1
+            elif sub.on_grid:
+                self.gaps.add(sub.topic, data)
             n += 1
             if delay:
                 time.sleep(delay)
@@ -224,7 +228,7 @@ class Recorder:
 
     def status(self, rows: dict | None = None) -> tuple[int, str, dict]:
         """(level, message, values) of the recorder's /diagnostics status; levels as diagnostic_msgs (0 OK, 1 WARN)."""
-        rows = self.loss.table(self.received_from_others()) if rows is None else rows
+        rows = self.loss.table(self.received_from_others(), self.gaps.missing()) if rows is None else rows
         lost = sum(r["lost"] or 0 for t, r in rows.items() if self.wanted(t))
         values = {f"received {t}": str(n) for t, n in sorted(self.received().items())}
         values.update({"messages written": str(self.writer.message_count), "lost total": str(lost),
@@ -240,9 +244,24 @@ class Recorder:
         else:
             self.diagnostics.publish(bytes([level]), message, values)
 
+    def report_write_error(self, exc: OSError) -> None:
+        """Publish the final status as an ERROR: the error, what reached the disk, the loss known so far."""
+        rows = self.loss.table(self.received_from_others(), self.gaps.missing())
+        received = sum(self.received_from_others().values())
+        on_disk = sum(self.writer._on_disk)  # messages in chunks already on disk (what `check` will recover)
+        values = {"write error": f"{exc.strerror or exc} ({getattr(exc, 'filename', '') or self.opts.output})",
+                  "received": str(received), "lost total": str(sum(r["lost"] or 0 for r in rows.values()))}  # fmt: skip
+        values["messages on disk"] = str(on_disk)
+        message = (f"write error: {exc.strerror or exc}; the bag is incomplete: {on_disk} of {received} messages "
+                   f"received reached the disk, lost at least {received - on_disk}; run `amb-bag check`")  # fmt: skip
+        if self.diagnostics is not None:
+            with contextlib.suppress(Exception):
+                self.diagnostics.publish_final(bytes([2]), message, values)
+
     def finish(self) -> dict:
         """Close the bag with the loss table in custom_data; returns the loss rows."""
-        rows = {t: r for t, r in self.loss.table(self.received_from_others()).items() if self.wanted(t)}
+        table = self.loss.table(self.received_from_others(), self.gaps.missing())
+        rows = {t: r for t, r in table.items() if self.wanted(t)}
         self.writer.close(custom_data(rows))
         return rows
 
@@ -259,6 +278,7 @@ class _Sub:
     rel_dur: tuple = ()
     handle_owner: object = None
     handle: object = None
+    on_grid: bool = False  # a per-step topic: stamp gaps counted
 
 
 def _ignore_message(_msg) -> None:
@@ -302,6 +322,11 @@ def record(opts: RecordOptions) -> dict:
         recorder.spin()
         rows = recorder.finish()
         recorder.publish_status(rows, final=True)  # after the bag is closed: amb-rig's summary reads it
+    except OSError as exc:  # disk full, folder gone: the row is an ERROR with what is lost, then one line
+        recorder.report_write_error(exc)
+        raise OSError(
+            exc.errno, f"{exc.strerror}; the bag is incomplete, run `amb-bag check`", str(opts.output)
+        ) from None
     finally:
         if rows is None:  # a bug stopped the recording: still finish the file rather than leave it open
             with contextlib.suppress(Exception):

@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 from pathlib import Path
 
 from mcap.reader import NonSeekingReader, SeekingReader
@@ -35,6 +36,7 @@ from .qos import profiles_from_yaml
 from .reader import READ_ERRORS, check_mcap_magic, damaged_is_format_error
 from .writer import LIBRARY, PROFILE, PROGRESS_FILE
 
+ORIGINAL_METADATA = "metadata.yaml.orig"  # the recorder's metadata a repair replaced, kept as evidence
 RECOVERY_KEY = "amb_bag.recovery"
 _INDEX = re.compile(r"_(\d+)\.mcap$")
 
@@ -135,6 +137,16 @@ def salvage_file(path: Path) -> _FileScan:
 def _rewrite(scan: _FileScan) -> None:
     """Write the salvaged messages to a new file with the original schemas and channels, then swap it in."""
     tmp = scan.path.with_name(scan.path.name + ".recovering")
+    try:
+        _write_salvaged(tmp, scan)
+    except OSError:
+        tmp.unlink(missing_ok=True)  # disk full: nothing half-written is left, the original stays as it was
+        raise
+    os.replace(scan.path, scan.path.with_name(scan.path.name + ".damaged"))
+    os.replace(tmp, scan.path)
+
+
+def _write_salvaged(tmp: Path, scan: _FileScan) -> None:
     with open(tmp, "wb") as f:
         writer = Writer(f)
         writer.start(profile=PROFILE, library=LIBRARY + " (recovered)")
@@ -148,8 +160,6 @@ def _rewrite(scan: _FileScan) -> None:
         for cid, m in scan.messages:
             writer.add_message(channel_ids[cid], m.log_time, m.data, m.publish_time, m.sequence)
         writer.finish()
-    os.replace(scan.path, scan.path.with_name(scan.path.name + ".damaged"))
-    os.replace(tmp, scan.path)
 
 
 def _progress(bag_dir: Path) -> dict:
@@ -180,7 +190,8 @@ def check(path, repair: bool = True) -> dict:
     if not damaged and intact_meta:
         return _report(where, "ok", scans, _rows(scans, {}), [])
     progress = {} if lone else _progress(bag_dir)
-    rows = _rows(scans, progress)
+    original = original_counts(meta)  # a surviving metadata.yaml: the counts the recorder wrote are evidence
+    rows = _rows(scans, progress, original)
     if not repair:
         return _report(where, "damaged", scans, rows, damaged, meta_problem)
     for scan in scans:
@@ -188,12 +199,15 @@ def check(path, repair: bool = True) -> dict:
             _rewrite(scan)
     report = _report(where, "recovered", scans, rows, damaged, meta_problem)
     if not lone:
+        if original:
+            keep_original_metadata(bag_dir)
+            report["original_metadata"] = ORIGINAL_METADATA
         _write_metadata(bag_dir, scans, rows, report)
         (bag_dir / PROGRESS_FILE).unlink(missing_ok=True)
     return report
 
 
-def _rows(scans: list[_FileScan], progress: dict) -> dict:
+def _rows(scans: list[_FileScan], progress: dict, original: dict[str, int] | None = None) -> dict:
     recovered: dict[str, int] = {}
     tracker = LossTracker()
     own = sum(scan.own_reports for scan in scans)
@@ -206,7 +220,8 @@ def _rows(scans: list[_FileScan], progress: dict) -> dict:
         published[topic] = max(published.get(topic, 0), int(n))
     received = {t: int(n) for t, n in (progress.get("received") or {}).items()}
     rows = {}
-    for topic in sorted(set(recovered) | set(published) | set(received)):
+    original = original or {}
+    for topic in sorted(set(recovered) | set(published) | set(received) | set(original)):
         got = recovered.get(topic, 0)
         from_others = got - (own if topic == DIAGNOSTICS_TOPIC else 0)
         known = max(received.get(topic, 0), published.get(topic, 0))
@@ -214,9 +229,26 @@ def _rows(scans: list[_FileScan], progress: dict) -> dict:
             "recovered": got,
             "received": received.get(topic),
             "published": published.get(topic),
-            "lost_at_least": max(0, known - from_others),
+            # the surviving metadata counted what was written (the recorder's own reports included)
+            "lost_at_least": max(0, known - from_others, original.get(topic, 0) - got),
         }
+        if topic in original:
+            rows[topic]["in_original_metadata"] = original[topic]
     return rows
+
+
+def original_counts(meta: dict | None) -> dict[str, int]:
+    """Per-topic message counts of a metadata.yaml that survived the crash ({} without one)."""
+    if not meta:
+        return {}
+    return {e["topic_metadata"]["name"]: int(e["message_count"]) for e in meta["topics_with_message_count"]}
+
+
+def keep_original_metadata(bag_dir: Path) -> None:
+    """Keep the metadata.yaml being replaced as ``metadata.yaml.orig`` (the first one: a second check keeps it)."""
+    target = bag_dir / ORIGINAL_METADATA
+    if not target.exists():
+        shutil.copy2(bag_dir / METADATA_FILE, target)
 
 
 def _report(bag_dir, status, scans, rows, damaged, meta_problem=None) -> dict:
@@ -251,8 +283,8 @@ def _write_metadata(bag_dir: Path, scans: list[_FileScan], rows: dict, report: d
     own = sum(scan.own_reports for scan in scans)
     received = {t: r["recovered"] - (own if t == DIAGNOSTICS_TOPIC else 0) for t, r in rows.items()}
     published = {t: r["published"] for t, r in rows.items() if r["published"] is not None}
-    extra = {RECOVERY_KEY: json.dumps({k: report[k] for k in ("damaged_files", "recovered_messages",
-                                                              "lost_at_least")}, separators=(",", ":"))}  # fmt: skip
+    keys = ("damaged_files", "recovered_messages", "lost_at_least", "original_metadata")
+    extra = {RECOVERY_KEY: json.dumps({k: report[k] for k in keys if k in report}, separators=(",", ":"))}
     loss = loss_table(received, published)
     write_metadata(bag_dir, build_metadata(list(topics.values()), files, {**custom_data(loss), **extra}))
     report["lost_vs_publishers"] = total_lost(loss)

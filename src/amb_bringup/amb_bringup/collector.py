@@ -21,6 +21,8 @@ class DiagnosticsCollector:
 
         self.node = rclpy.create_node("amb_rig")
         self.latest: dict[str, dict] = {}
+        self.accept_pids = None  # callable returning the pids whose reports count (None: everyone's)
+        self.foreign: dict[str, int] = {}  # status name -> reports ignored (not from this run's processes)
         self.first_seen: dict[str, float] = {}
         self._lock = threading.Lock()
         self.node.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diag, diagnostics_qos())
@@ -34,9 +36,19 @@ class DiagnosticsCollector:
         while not self._stop.is_set():
             self._executor.spin_once(timeout_sec=0.05)
 
+    def _accepted(self, hardware_id: str) -> bool:
+        """A report of one of this run's processes (``hardware_id`` "amb-rig pid N"), when a pid set is given."""
+        if self.accept_pids is None:
+            return True
+        head, _, pid = hardware_id.rpartition(" pid ")
+        return head == "amb-rig" and pid.isdigit() and int(pid) in self.accept_pids()
+
     def _on_diag(self, msg: DiagnosticArray) -> None:
         with self._lock:
             for st in msg.status:
+                if not self._accepted(st.hardware_id):  # a replayed bag's, another run's: never this run's
+                    self.foreign[st.name] = self.foreign.get(st.name, 0) + 1
+                    continue
                 values = {kv.key: kv.value for kv in st.values}
                 self.first_seen.setdefault(st.name, time.monotonic())
                 prev = self.latest.get(st.name)

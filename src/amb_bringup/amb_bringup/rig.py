@@ -11,8 +11,8 @@ by --start-timeout) until every node reports on /diagnostics and the plant repor
 waits until controller and base motion are matched), then wait for the plant to finish its --duration (or, with
 --no-plant, for --duration of wall time; a run split across two hosts ends with its other side:
 amb_bringup.split), stop everything cleanly and print the summary.  Exit code 0 only if every process ran and
-ended as expected and no node ended with an ERROR diagnostic; 1 otherwise; 2 for bad arguments; 130/143 when
-interrupted.
+ended as expected, then the summary's verdict line.  Exit codes: docs/exit-codes.md (0 ran as asked, whatever
+the result; 1 failed or untrustworthy; 2 bad arguments; 3 a --fail-on result; 128+n signal n).
 """
 
 from __future__ import annotations
@@ -31,17 +31,19 @@ from amb_dynamics.config import load_config
 from amb_dynamics.errors import AmbError
 from amb_ros.discovery import DiscoveryError, apply_choice
 from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds, hold_run_lock
+from amb_ros.shm_clean import clean_stale_shm
 
 from . import live, paramfile, split
 from .domain import Watch, describe, foreign_publishers, topics_of
+from .liveness import DeathWatch
 from .processes import all_specs
+from .rig_args import check_rig_args, refuse
 from .summary import build_summary, format_summary
 from .supervisor import Supervisor, describe_exit
+from .verdict import add_arguments as add_verdict_arguments
+from .verdict import judge_verdict
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
-# after a node died, the plant may take its command timeout (10 s) and then up to 2 s for each of its three data
-# writers and 2 s for its final diagnostics to be acknowledged before it exits on its own: 18 s at most
-PEER_DEATH_GRACE_S = 20.0
 LOCK_WAIT_S = 10.0  # for the domain's previous run to end: its nodes may still be exiting (bounded ack waits)
 
 
@@ -81,6 +83,8 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--no-monitor", action="store_true", help="do not start the stability monitor")
     split.add_arguments(r)  # --discovery, --only plant
     r.add_argument("--log-dir", help="folder for the node logs and params file (default: a new temp folder)")
+    r.add_argument("--keep-logs", action="store_true", help="keep the temp log folder of a run that went well")
+    add_verdict_arguments(r)
     r.add_argument("--start-timeout", type=float, default=60.0, help="bound on start-up and connection (s)")
     r.add_argument("--timeout", type=float, help="bound on the whole run (wall s; default from the duration)")
     paramfile.add_arguments(r)
@@ -128,20 +132,23 @@ def main(argv: list[str] | None = None) -> None:
         print(f"amb-rig: {bad}", file=sys.stderr)
         sys.exit(EXIT_USAGE)
     try:
+        check_rig_args(args)  # every argument before anything starts (docs/exit-codes.md: 2)
         cfg = load_config(args.config, args.set)  # validate before starting anything
-        lock = split.hold_locks(hold_run_lock, os.environ["ROS_DOMAIN_ID"], args, LOCK_WAIT_S, _say_waiting)
     except (AmbError, DdsEnvError) as exc:
-        raise SystemExit(f"amb-rig: {exc}") from None
-    if args.duration <= 0 and not args.no_plant:
-        raise SystemExit("amb-rig: --duration must be > 0 s")
+        refuse(f"amb-rig: {exc}")
     if args.rt_priority is None:
         args.rt_priority = 20 if args.mode == "realtime" else 0
     if args.rt_priority and args.mode == "lockstep" and (args.bag or not args.no_monitor):
         # measured: the loop then runs ~40 % faster, and the monitor and recorder fall behind and lose samples
-        raise SystemExit(
+        refuse(
             "amb-rig: --rt-priority in lockstep needs --no-monitor and no --bag (a SCHED_FIFO loop "
             "starves them: they would lose samples)"
         )
+    try:
+        lock = split.hold_locks(hold_run_lock, os.environ["ROS_DOMAIN_ID"], args, LOCK_WAIT_S, _say_waiting)
+    except (AmbError, DdsEnvError) as exc:  # the domain is in use: not bad input, a run that could not happen
+        raise SystemExit(f"amb-rig: {exc}") from None
+    clean_stale_shm()  # a killed run's Fast DDS segments (nobody holds their locks); a live run's stay
     sys.exit(run(args, cfg, lock))
 
 
@@ -178,6 +185,7 @@ def run(args, cfg, lock) -> int:
     sup = Supervisor(
         log_dir, child_env(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1"), tuple(fh.fileno() for fh in lock)
     )
+    collector.accept_pids = lambda: {c.pid for c in sup.children}  # only this run's reports (not a replay's)
     errors: list[str] = []
     peer = split.PeerEnd(collector.node, collector, args)
     t0 = time.monotonic()
@@ -212,10 +220,21 @@ def run(args, cfg, lock) -> int:
         **({"notes": notes} if notes else {}),
     }
     summary = build_summary(run_info, sup.children, collector, errors)
-    print(json.dumps({"schema_version": 1, **summary}, indent=2) if args.json else format_summary(summary), flush=True)
+    if collector.foreign:
+        summary["foreign_diagnostics"] = dict(collector.foreign)
+    verdict = judge_verdict(summary, args)  # the whole run's verdict and exit code (docs/exit-codes.md)
+    summary.update(ok=not verdict.failures, errors=verdict.failures, verdict=verdict.to_dict())
+    print(
+        json.dumps({"schema_version": 1, **summary}, indent=2)
+        if args.json
+        else f"{format_summary(summary)}\n{verdict.line}",
+        flush=True,
+    )
+    if not args.log_dir and not args.keep_logs and verdict.exit_code == 0 and interrupted.signum is None:
+        shutil.rmtree(log_dir, ignore_errors=True)  # a clean run leaves no /tmp/amb-rig-* behind
     if interrupted.signum is not None:
         return 128 + interrupted.signum
-    return 0 if summary["ok"] else EXIT_FAILED
+    return verdict.exit_code
 
 
 def _g(value, default) -> str:
@@ -268,17 +287,14 @@ def wait_run(args, sup: Supervisor, collector, interrupted, watch: Watch, peer=N
         time.sleep(0.05)
     run_start = time.monotonic() - plant_running_for(collector, plant)
     limit = args.timeout if args.timeout else default_timeout(args)
-    grace_end = None
+    deaths = DeathWatch(sup)  # a node's death is the run's first error, noticed at once (liveness.py)
     while interrupted.signum is None:
         if plant is not None and plant.poll() is not None:
             break
         if intruder := watch.check():
             return [intruder]
-        if sup.died_early():
-            # a peer died: give the plant time to notice (command timeout) and report it before stopping it
-            grace_end = grace_end or time.monotonic() + (PEER_DEATH_GRACE_S if plant is not None else 0.0)
-            if time.monotonic() >= grace_end:
-                break
+        if deaths.poll():
+            return [deaths.first]
         if peer is not None and peer.ended():
             break  # a split run: the other side has ended (amb_bringup.split)
         if peer is not None and peer.owns_end:

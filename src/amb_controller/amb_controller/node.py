@@ -80,6 +80,12 @@ def specs() -> list[ParamSpec]:
     ]  # fmt: skip
 
 
+# lockstep: the plant publishes sample k+1 only after the answer to k, so a sample further ahead than this is
+# not a loss but a foreign stamp (counted and rejected); the first sample must lie in the first few seconds
+SAMPLE_WINDOW = 64
+FIRST_SAMPLE_WINDOW = 50_000
+
+
 class ControllerNode(RigNode):
     def __init__(self, stop):
         super().__init__("amb_controller", stop, specs())
@@ -107,6 +113,7 @@ class ControllerNode(RigNode):
         self.waiter = Waiter(self, [self.sub])
         self.live = LiveParams(self, [s for s in specs() if s.runtime], self.retune)
         self.answered = self.saturated = self.lost = self.restarts = self.repeated = 0
+        self.out_of_window = 0  # lockstep samples stamped far ahead of the stream (rejected)
         self.sensor_losses = self.safe_ticks = self.nonfinite = 0
         self.max_current = 0.0
         self.last_k = -1
@@ -182,6 +189,11 @@ class ControllerNode(RigNode):
         elif k <= self.last_k:
             self.counters.reject(m.DISPLACEMENT, f"sample for step {k} after step {self.last_k} (duplicate)")
             return
+        elif k > self.last_k + (SAMPLE_WINDOW if self.last_k >= 0 else FIRST_SAMPLE_WINDOW):
+            # not this run's stream (a future stamp, a flood): taken as the newest it would wedge the loop
+            self.out_of_window += 1
+            self.counters.reject(m.DISPLACEMENT, f"sample for step {k} far ahead of step {self.last_k} (foreign?)")
+            return
         elif k > self.last_k + 1:
             self.lost += k - self.last_k - 1
         self.last_k = k
@@ -254,13 +266,14 @@ class ControllerNode(RigNode):
         return (WARN if notes else OK), text
 
     def values(self) -> dict[str, str]:
+        self.counters.published[m.CURRENT] = self.answered + self.safe_ticks  # before it is read: never stale
         out = self.common_values()
-        self.counters.published[m.CURRENT] = self.answered + self.safe_ticks
         out.update(
             {
                 "sensor state": self.sensor_state,
                 "samples answered": str(self.answered),
                 "samples lost": str(self.lost),
+                "samples out of window": str(self.out_of_window),
                 "restarts": str(self.restarts),
                 "saturated samples": str(self.saturated),
                 "max current (A)": f"{self.max_current:.6g}",

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import plots
+from . import guards, plots
 from .analysis_sensitivity import run_sensitivity  # noqa: F401  (the `sensitivity` verb)
 from .chart import stability_chart
 from .config import RotorConfig, load_config
@@ -126,7 +126,10 @@ def run_floquet(args):
         data = res.to_dict(args.top)
     else:
         loop = SampledLoop(s.model, s.cfg, forcing=False)
-        if ps.period is not None and hybrid_period(ps.period, loop.Ts) is None and not args.snap:
+        pr = hybrid_period(ps.period, loop.Ts)
+        cost = pr[0] if pr else (round(ps.period / loop.Ts) if args.snap else LYAPUNOV_PERIODS * ps.period / loop.Ts)
+        guards.check_sampled(ps.period, loop.Ts, int(cost))
+        if ps.period is not None and pr is None and not args.snap:
             lam = sampled_lyapunov(loop, motion, LYAPUNOV_PERIODS, ps.period)
             data = {
                 "period_s": ps.period,
@@ -216,6 +219,7 @@ def run_simulate(args):
     steps = round(args.duration / h)
     if steps < 1:
         raise InputError("--duration must cover at least one time step")
+    guards.check_simulate_steps(steps)
     run = newmark(ps, s.model.M, x0, h, steps, every=1, forcing=s.cfg.base_forcing)
     q_fe = s.model.to_fe(run.x[:, : s.model.n])
     disk = q_fe[:, 4 * (disk_node - 1) : 4 * (disk_node - 1) + 2]
@@ -275,5 +279,5 @@ def run_simulate(args):
 def _write_json(path: Path, data: dict) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".part")
-    tmp.write_text(json.dumps({"schema_version": 1, **data}))
+    tmp.write_text(json.dumps({"schema_version": 1, **guards.finite_json(data)[0]}, allow_nan=False))
     tmp.replace(path)

@@ -21,7 +21,7 @@ def grid(text: str):
     try:
         if ":" in text:
             lo, hi, n = text.split(":")
-            if int(n) < 1:
+            if not 1 <= int(n) <= 1_000_000:
                 raise ValueError
             return np.linspace(float(lo), float(hi), int(n))
         return np.array([float(v) for v in text.split(",")])
@@ -133,18 +133,22 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     limit_blas_threads()  # first: BLAS reads its thread count when numpy loads (amb_dynamics/threads.py)
-    from . import analysis, unbalance_report  # import numpy
+    from . import analysis, guards, unbalance_report  # import numpy
 
     runners = {"unbalance": unbalance_report.run_unbalance}  # verbs outside analysis.py
     args = build_parser().parse_args(argv)
     # the chart writes its own JSON file; --json there also prints the summary
     try:
+        guards.check_args(args)
         result, text = runners.get(args.verb, getattr(analysis, f"run_{args.verb}", None))(args)
     except AmbError as exc:
         print(f"amb-dynamics {args.verb}: error: {exc}", file=sys.stderr)
         return 2
     if args.json:
-        json.dump({"schema_version": 1, **result}, sys.stdout, indent=1)
+        result, replaced = guards.finite_json(result)  # JSON has no NaN: null, and say where
+        if replaced:
+            result["non_finite"] = replaced
+        json.dump({"schema_version": 1, **result}, sys.stdout, indent=1, allow_nan=False)
         print()
     else:
         print(text)

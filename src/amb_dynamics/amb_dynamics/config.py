@@ -6,6 +6,7 @@ key and the file.  ``load_config(path, overrides=["controller.rate_hz=5000"])`` 
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import re
@@ -30,6 +31,7 @@ from .config_rig import (
     check_rig,
 )
 from .errors import ConfigError
+from .yamlread import load_yaml, read_text_bounded
 
 SEED_CONFIG_NAME = "seed_rotor.yaml"
 PAPER_CONFIG_NAME = "seed_paper.yaml"  # the paper's idealised model (every paper comparison)
@@ -166,21 +168,39 @@ def paper_config_path() -> Path:
 def load_config(path: str | Path | None = None, overrides: list[str] | tuple[str, ...] = ()) -> RotorConfig:
     """Read, override and validate a rotor file; raises ConfigError with one clear line."""
     path = Path(path) if path is not None else seed_config_path()
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read config ({exc.strerror})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark else ""
-        raise ConfigError(f"{path}:{where} is not valid YAML ({getattr(exc, 'problem', exc)})") from None
+    data = load_yaml(read_text_bounded(path, what="config"), str(path))
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: top level must be a mapping of keys")
-    for item in overrides:
+    if not overrides:
+        return config_from_dict(data, str(path))
+    config_from_dict(copy.deepcopy(data), str(path))  # the file alone: its errors are the file's
+    for i, item in enumerate(overrides):  # the first override after which the config is invalid takes the blame
         apply_override(data, item, str(path))
-    return config_from_dict(data, str(path))
+        try:
+            cfg = config_from_dict(copy.deepcopy(data), str(path))
+        except ConfigError as exc:
+            if i == len(overrides) - 1 or _invalid_after_all(data, overrides[i + 1 :], path):
+                raise ConfigError(f"--set {item} (on {path}): {_strip_source(exc, path)}") from None
+            continue
+    return cfg
+
+
+def _invalid_after_all(data: dict, rest: list[str] | tuple[str, ...], path: Path) -> bool:
+    """True when the remaining overrides do not repair what an earlier one broke."""
+    trial = copy.deepcopy(data)
+    for item in rest:
+        apply_override(trial, item, str(path))
+    try:
+        config_from_dict(trial, str(path))
+    except ConfigError:
+        return True
+    return False
+
+
+def _strip_source(exc: ConfigError, path: Path) -> str:
+    text = str(exc)
+    prefix = f"{path}: "
+    return text[len(prefix) :] if text.startswith(prefix) else text
 
 
 def config_from_dict(data: dict, source: str = "<memory>") -> RotorConfig:

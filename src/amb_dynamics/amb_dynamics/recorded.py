@@ -18,6 +18,7 @@ from scipy.interpolate import make_smoothing_spline
 
 from .errors import InputError
 from .motion import AXES, BaseMotion
+from .yamlread import read_text_bounded
 
 MIN_ROWS = 5
 
@@ -50,22 +51,40 @@ class RecordedMotion(BaseMotion):
         return b, bd, bdd
 
 
+MAX_TRAJECTORY_BYTES = 64 << 20  # 1 h at 1 kHz of t, roll, pitch, yaw is ~150 MB of CSV: decimate before
+
+
+def _rows(path: Path, lines: list[str], columns: int) -> np.ndarray:
+    """The numeric rows; an error names the file and line number, never the line's content."""
+    out = np.empty((len(lines), columns))
+    n = 0
+    for i, line in enumerate(lines, start=2):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        parts = line.split(",")
+        if len(parts) != columns:
+            raise InputError(f"{path}: line {i} has {len(parts)} values for {columns} header columns")
+        try:
+            out[n] = [float(v) for v in parts]
+        except ValueError:
+            raise InputError(f"{path}: line {i} is not a row of numbers") from None
+        n += 1
+    return out[:n]
+
+
 def load_recorded(path: str | Path, smoothing: float | None = None) -> RecordedMotion:
     """Read a CSV trajectory; raises InputError with one line for a bad file."""
     path = Path(path)
-    try:
-        with path.open() as fh:
-            header = [h.strip().lower() for h in fh.readline().strip().split(",")]
-            rows = np.loadtxt(fh, delimiter=",", ndmin=2)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read recorded trajectory ({exc.strerror})") from None
-    except ValueError as exc:
-        raise InputError(f"{path}: not a numeric CSV trajectory ({str(exc).splitlines()[0]})") from None
+    # regular files only, size checked before reading (a /dev/zero would otherwise be read without end)
+    text = read_text_bounded(path, MAX_TRAJECTORY_BYTES, "recorded trajectory", InputError)
+    lines = text.splitlines()
+    header = [h.strip().lower() for h in lines[0].split(",")] if lines else []
+    rows = _rows(path, lines[1:], len(header))
     if "t" not in header:
-        raise InputError(f"{path}: header must name a 't' column and any of roll, pitch, yaw (got {header})")
+        raise InputError(f"{path}: line 1 (header) must name a 't' column and any of roll, pitch, yaw")
     unknown = [h for h in header if h not in ("t", *AXES)]
     if unknown:
-        raise InputError(f"{path}: unknown column '{unknown[0]}' (allowed: t, roll, pitch, yaw)")
+        raise InputError(f"{path}: line 1 (header) has a column other than t, roll, pitch, yaw")
     if rows.shape[1] != len(header):
         raise InputError(f"{path}: {rows.shape[1]} values per row for {len(header)} header columns")
     if rows.shape[0] < MIN_ROWS:

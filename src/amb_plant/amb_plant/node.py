@@ -132,6 +132,7 @@ class PlantNode(RigNode):
         self.waiter = Waiter(self, [sub for sub, _ in self.handlers])
         # received data: lockstep keeps samples by step index, realtime only the latest
         self.commands: dict[int, np.ndarray] = {}
+        self.duplicates = 0  # lockstep: second commands for one step (rejected; the run cannot be trusted)
         self.rates: dict[int, np.ndarray] = {}  # lockstep: step -> [Omega, dOmega]
         self.latest_rates = (np.zeros(3), np.zeros(3))
         self.k_now = 0  # lockstep: the step being computed; realtime: the current tick
@@ -174,7 +175,10 @@ class PlantNode(RigNode):
         k = self._grid_steps(m.CURRENT, t_ns)
         if k is None:
             return
-        if k == self.k_now and not self.finished:
+        if k == self.k_now and not self.finished and k in self.commands:  # never "the last one wins"
+            self.duplicates += 1
+            self.counters.reject(m.CURRENT, f"duplicate command for step {k} (a second publisher?); first one kept")
+        elif k == self.k_now and not self.finished:
             self.commands[k] = current.copy()
         else:
             self.counters.reject(m.CURRENT, f"command for step {k} while at step {self.k_now}")
@@ -352,6 +356,7 @@ class PlantNode(RigNode):
             out[f"peak {name} (m)"] = f"{peak:.6g}"
             out[f"peak {name} / air gap"] = f"{peak / self.air_gap:.6g}"
         if self.mode == "lockstep":
+            out["duplicate commands"] = str(self.duplicates)
             out["start wait (s)"] = f"{self.start_wait_s:.3f}"
             out.update(self.round_trip.summary("command wait"))
         else:

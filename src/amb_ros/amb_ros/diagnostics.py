@@ -1,6 +1,7 @@
 """/diagnostics publishing and message accounting shared by the nodes.
 
-Each node publishes one DiagnosticStatus named after the node (``hardware_id`` "amb-rig") every
+Each node publishes one DiagnosticStatus named after the node (``hardware_id`` "amb-rig pid <pid>", so that
+amb-rig takes only its own children's reports, never a replayed bag's) every
 ``period_s`` of wall time and once more when it stops (key ``final`` = ``true``), waiting until every reader
 has acknowledged that last one so that ``amb-rig`` can summarise the run from it.  Values are strings; keys carry
 units in parentheses, as diagnostic_updater's do (``rate (Hz)``).
@@ -8,6 +9,7 @@ units in parentheses, as diagnostic_updater's do (``rate (Hz)``).
 
 from __future__ import annotations
 
+import os
 import time
 from collections import defaultdict
 
@@ -20,7 +22,7 @@ from .qos import diagnostics_qos
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR", DiagnosticStatus.STALE: "STALE"}
-HARDWARE_ID = "amb-rig"
+HARDWARE_ID = f"amb-rig pid {os.getpid()}"  # the publishing process: amb-rig accepts only its children's
 
 
 class Counters:

@@ -124,8 +124,9 @@ def main(argv: list[str] | None = None) -> None:
     if argv and argv[0] == "analyze":
         try:
             sys.exit(analyze(argv[1:]))
-        except AmbError as exc:
-            raise SystemExit(f"amb-monitor analyze: {exc}") from None
+        except AmbError as exc:  # bad input: one line, exit 2 (docs/exit-codes.md)
+            print(f"amb-monitor analyze: {exc}", file=sys.stderr)
+            sys.exit(2)
     if argv and argv[0] in ("-h", "--help"):
         print(__doc__)
         sys.exit(0)

@@ -1,0 +1,269 @@
+"""Every bad input of issue 20 item 7: one line on stderr naming what is wrong, exit status 2, nothing written.
+
+Each case runs the command's own ``main`` in-process (a traceback would surface here as the exception itself)
+and checks the exit status, that stderr is exactly one line, that it names the option or file, and that no
+output file (or half-written bag) was left behind.  Before this change each of these printed a traceback, ran
+for minutes, or was accepted.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+SAMPLE_BAG = Path(__file__).resolve().parents[1] / "bags" / "sample_pitch"
+PITCH = ["--motion", "pitch", "--amplitude", "0.3", "--frequency", "24.5"]
+
+
+def _dyn(argv):
+    from amb_dynamics import cli
+
+    return cli.main(argv)
+
+
+def _bag(argv):
+    from amb_bag import cli
+
+    cli.main(argv)
+
+
+def _monitor(argv):
+    from stability_monitor import cli
+
+    cli.main(argv)
+
+
+def _rig(argv):
+    from amb_bringup import rig
+
+    rig.main(argv)
+
+
+def _eight_byte_bag(tmp: Path) -> Path:
+    bag = tmp / "eight"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_bytes((SAMPLE_BAG / "metadata.yaml").read_bytes())
+    (bag / "sample_pitch_0.mcap").write_bytes((SAMPLE_BAG / "sample_pitch_0.mcap").read_bytes()[:8])
+    return bag
+
+
+def _undecodable_bag(tmp: Path) -> Path:
+    """A ros2-profile MCAP whose one /amb/displacement message is not a JointState."""
+    from mcap.writer import Writer
+
+    from amb_bag import msgdefs
+
+    path = tmp / "garbage.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start(profile="ros2", library="test")
+        text = msgdefs.full_text("sensor_msgs/msg/JointState").encode()
+        sid = w.register_schema("sensor_msgs/msg/JointState", "ros2msg", text)
+        cid = w.register_channel("/amb/displacement", "cdr", sid)
+        w.add_message(cid, 1, b"\x00\x01\x00\x00\xff\xff\xff\x7f", 1)
+        w.finish()
+    return path
+
+
+# (id, runner, argv builder (tmp -> argv), words the line must contain)
+CASES = [
+    (
+        "config-not-utf8",
+        _dyn,
+        lambda t: ["modes", "--config", str(_file(t, "bad.yaml", b"a: \xff\xfe\n"))],
+        ["bad.yaml", "line 1", "UTF-8"],
+    ),
+    (
+        "config-duplicate-key",
+        _dyn,
+        lambda t: ["modes", "--config", str(_file(t, "dup.yaml", b"spin_speed_rpm: 1\nspin_speed_rpm: 2\n"))],
+        ["dup.yaml", "line 2", "duplicate key 'spin_speed_rpm'"],
+    ),
+    ("config-is-dev-zero", _dyn, lambda t: ["modes", "--config", "/dev/zero"], ["/dev/zero", "not a regular file"]),
+    (
+        "set-blamed-on-override",
+        _dyn,
+        lambda t: ["modes", "--set", "controller.rate_hz=-5"],
+        ["--set controller.rate_hz=-5", "rate_hz"],
+    ),
+    ("modes-nan-speed", _dyn, lambda t: ["modes", "--speed-rpm", "nan"], ["--speed-rpm", "finite"]),
+    ("modes-extreme-speed", _dyn, lambda t: ["modes", "--speed-rpm", "1e300"], ["--speed-rpm", "<="]),
+    (
+        "floquet-extreme-amplitude",
+        _dyn,
+        lambda t: ["floquet", "--motion", "pitch", "--amplitude", "1e300", "--frequency", "24.5"],
+        ["--amplitude"],
+    ),
+    (
+        "floquet-inf-frequency",
+        _dyn,
+        lambda t: ["floquet", "--motion", "pitch", "--amplitude", "0.3", "--frequency", "inf"],
+        ["--frequency"],
+    ),
+    (
+        "floquet-sampled-1mhz",
+        _dyn,
+        lambda t: [
+            "floquet",
+            "--motion",
+            "pitch",
+            "--amplitude",
+            "0.3",
+            "--frequency",
+            "6.2e4",
+            "--controller",
+            "sampled",
+        ],
+        ["two controller samples"],
+    ),
+    (
+        "floquet-sampled-1hz",
+        _dyn,
+        lambda t: [
+            "floquet",
+            "--motion",
+            "pitch",
+            "--amplitude",
+            "0.3",
+            "--frequency",
+            "6.283",
+            "--controller",
+            "sampled",
+        ],
+        ["controller samples", "at most"],
+    ),
+    (
+        "chart-nan-amplitude",
+        _dyn,
+        lambda t: [
+            "chart",
+            "--motion",
+            "pitch",
+            "--amplitude",
+            "nan",
+            "--frequency",
+            "1:40:3",
+            "--out",
+            str(t / "c.png"),
+        ],
+        ["--amplitude", "finite"],
+    ),
+    (
+        "chart-extreme-amplitude",
+        _dyn,
+        lambda t: [
+            "chart",
+            "--motion",
+            "pitch",
+            "--amplitude",
+            "0:1e300:3",
+            "--frequency",
+            "1:40:3",
+            "--out",
+            str(t / "c.png"),
+        ],
+        ["--amplitude"],
+    ),
+    (
+        "chart-100k-squared",
+        _dyn,
+        lambda t: [
+            "chart",
+            "--motion",
+            "pitch",
+            "--amplitude",
+            "0:0.5:100000",
+            "--frequency",
+            "1:40:100000",
+            "--out",
+            str(t / "c.png"),
+        ],
+        ["100000 x 100000", "refused"],
+    ),
+    ("simulate-nan-duration", _dyn, lambda t: ["simulate", *PITCH, "--duration", "nan"], ["--duration", "finite"]),
+    ("simulate-huge-duration", _dyn, lambda t: ["simulate", *PITCH, "--duration", "1e300"], ["--duration"]),
+    ("campbell-out-dir", _dyn, lambda t: ["campbell", "--out", str(t)], ["--out", "is a folder"]),
+    ("check-8-byte-mcap", _bag, lambda t: ["check", str(_eight_byte_bag(t))], ["sample_pitch_0.mcap", "truncated"]),
+    (
+        "analyze-8-byte-mcap",
+        _monitor,
+        lambda t: ["analyze", str(_eight_byte_bag(t))],
+        ["sample_pitch_0.mcap", "truncated"],
+    ),
+    (
+        "plot-undecodable-message",
+        _bag,
+        lambda t: ["plot", str(_undecodable_bag(t)), "--out", str(t / "p.png")],
+        ["/amb/displacement", "cannot be decoded"],
+    ),
+    ("play-rate-1e-300", _bag, lambda t: ["play", str(SAMPLE_BAG), "--rate", "1e-300"], ["--rate"]),
+    ("play-delay-negative", _bag, lambda t: ["play", str(SAMPLE_BAG), "--delay", "-1"], ["--delay"]),
+    ("play-delay-nan", _bag, lambda t: ["play", str(SAMPLE_BAG), "--delay", "nan"], ["--delay"]),
+    (
+        "record-exclude-bad-regex",
+        _bag,
+        lambda t: ["record", "-o", str(t / "r"), "--exclude", "["],
+        ["--exclude '['", "regular expression"],
+    ),
+    (
+        "rig-param-newline",
+        _rig,
+        lambda t: ["run", "--param", "controller:proportional_gain=1\n2"],
+        ["--param controller:proportional_gain", "control character"],
+    ),
+    ("rig-param-bad-yaml", _rig, lambda t: ["run", "--param", "controller:proportional_gain=["], ["--param"]),
+    ("rig-duration-nan", _rig, lambda t: ["run", "--duration", "nan"], ["--duration"]),
+    ("rig-bag-exists", _rig, lambda t: ["run", "--bag", str(t)], ["--bag", "already exists"]),
+]
+
+
+def _file(tmp: Path, name: str, data: bytes) -> Path:
+    path = tmp / name
+    path.write_bytes(data)
+    return path
+
+
+@pytest.mark.parametrize(("runner", "make", "words"), [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_input_is_one_line_and_exit_2(runner, make, words, tmp_path, capsys, monkeypatch):
+    work = tmp_path / "in"
+    work.mkdir()
+    argv = make(work)
+    before = sorted(p.name for p in work.iterdir())  # inputs the builder wrote
+    monkeypatch.setattr(sys, "argv", ["prog", *argv])
+    try:
+        code = runner(argv)
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2, (code, err)
+    assert err.endswith("\n") and err.count("\n") == 1, err
+    assert "Traceback" not in err
+    for word in words:
+        assert word in err, (word, err)
+    assert sorted(p.name for p in work.iterdir()) == before  # nothing written (no bag, no PNG, no JSON)
+
+
+def test_floquet_json_is_finite_even_when_a_number_is_not(monkeypatch, capsys):
+    """``finite_json`` turns NaN/inf into null and lists where; ``json.loads`` of the output never sees NaN."""
+    from amb_dynamics.guards import finite_json
+
+    clean, where = finite_json({"a": float("nan"), "b": [1.0, float("inf"), {"c": -float("inf")}], "d": 2})
+    assert clean == {"a": None, "b": [1.0, None, {"c": None}], "d": 2}
+    assert where == ["a", "b.1", "b.2.c"]
+    text = json.dumps(clean, allow_nan=False)  # raises on any non-finite float left
+    assert json.loads(text)["d"] == 2
+
+
+def test_set_error_of_a_valid_file_names_the_override_not_the_file(tmp_path):
+    """The file alone is valid; the second override breaks it: the message names that override."""
+    from amb_dynamics.config import load_config
+    from amb_dynamics.errors import ConfigError
+
+    with pytest.raises(ConfigError) as exc:
+        load_config(None, ["controller.rate_hz=6000", "shaft.elements=0"])
+    text = str(exc.value)
+    assert text.startswith("--set shaft.elements=0 (on ") and "elements" in text
+    assert "rate_hz" not in text

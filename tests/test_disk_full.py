@@ -1,0 +1,69 @@
+"""A full disk (a 1 MiB tmpfs) under ``amb-bag record`` and ``amb-bag check``: one line, exit 1, no traceback.
+
+Before: the run failed but the recorder's row said ``OK ... lost 0``, and both commands printed a traceback.
+Needs root for ``mount -t tmpfs`` (the test machine runs as root); elsewhere it cannot run and says so.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from procs import spawn
+
+sys.path.insert(0, str(Path(__file__).parent / "bagtools"))
+import mix
+
+PUBLISHER = Path(__file__).parent / "bagtools" / "publisher.py"
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    mnt = tmp_path / "disk"
+    mnt.mkdir()
+    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mnt)],
+                                           capture_output=True).returncode != 0:  # fmt: skip
+        pytest.skip("mounting a tmpfs needs root")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
+
+
+def test_check_on_a_full_disk_is_one_line_and_leaves_the_bag_as_it_was(small_disk, capsys):
+    from amb_bag import cli
+
+    bag = small_disk / "bag"
+    mix.write_bag(bag, 300, chunk_size=2048)
+    data = (bag / "bag_0.mcap").read_bytes()
+    (bag / "bag_0.mcap").write_bytes(data[: len(data) // 2])
+    before = {p.name: p.read_bytes() for p in bag.iterdir()}
+    free = os.statvfs(small_disk)
+    (small_disk / "filler").write_bytes(bytes(free.f_bavail * free.f_frsize - 4096))  # leave less than a copy
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["check", str(bag)])
+    err = capsys.readouterr().err
+    assert exc.value.code == 1 and err.count("\n") == 1 and "No space left on device" in err, err
+    assert {p.name: p.read_bytes() for p in bag.iterdir()} == before  # nothing half-written, nothing replaced
+
+
+@pytest.mark.ros
+def test_record_on_a_full_disk_is_one_line_and_an_error_row(small_disk, tmp_path, venv_bin):
+    bag = small_disk / "bag"
+    rec_cmd = [str(venv_bin / "amb-bag"), "record", "-o", str(bag), "--flush-interval", "0.2"]
+    pub_cmd = [sys.executable, str(PUBLISHER), "--steps", "20000", "--rate", "0", "--log", str(tmp_path / "sent.pkl"),
+               "--wait-subscribers", "30"]  # fmt: skip
+    with spawn(rec_cmd, tmp_path / "rec.log") as rec:
+        assert rec.wait_for("recording to", 30), rec.text()
+        with spawn(pub_cmd, tmp_path / "pub.log") as pub:
+            code = rec.wait(90)
+            pub.stop()
+        text = rec.text()
+    assert code == 1, text
+    last = text.strip().splitlines()[-1]
+    assert last == f"amb-bag record: {bag}: No space left on device; the bag is incomplete, run `amb-bag check`"
+    assert "Traceback" not in text

@@ -1,0 +1,54 @@
+"""The lockstep plant takes one command per step: a second one is rejected and counted, never "last one wins".
+
+Before: ``self.commands[k] = current`` let an intruder's 12 A command for the current step replace the
+controller's (amb_plant/node.py), although docs/topics.md said duplicates are rejected.  The verdict then
+fails the run: which command was applied cannot be told.  Commands are serialized by rclpy here.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.ros
+
+
+def test_second_command_for_a_step_is_rejected_and_fails_the_run():
+    import rclpy
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+
+    from amb_bringup.verdict import EXIT_FAILED, add_arguments, judge_verdict
+    from amb_plant.node import PlantNode
+    from amb_ros.runtime import StopFlag
+
+    rclpy.init(args=[])
+    try:
+        plant = PlantNode(StopFlag())
+
+        def command(k: int, amps: float) -> bytes:
+            msg = JointState()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k * plant.Ts_ns, 10**9)
+            msg.name = list(plant.channels)
+            msg.effort = [amps] * len(plant.channels)
+            return serialize_message(msg)
+
+        assert plant.mode == "lockstep" and plant.k_now == 0
+        plant.on_command(command(0, 1.0))  # the controller's
+        plant.on_command(command(0, 12.0))  # an intruder's, same step
+        plant.on_command(command(0, 12.0))
+        assert np.array_equal(plant.commands[0], np.full(len(plant.channels), 1.0))  # the first one is kept
+        values = plant.values()
+        assert values["duplicate commands"] == "2"
+        plant.destroy_node()
+    finally:
+        rclpy.try_shutdown()
+    p = argparse.ArgumentParser()
+    add_arguments(p)
+    args = p.parse_args([])
+    args.mode, args.no_plant = "lockstep", False
+    summary = {"errors": [], "nodes": {"plant": {"values": values}}, "rate_hz": 5000.0}
+    v = judge_verdict(summary, args)
+    assert v.exit_code == EXIT_FAILED and "2 duplicate commands for one step" in v.line

@@ -1,0 +1,42 @@
+"""kill -9 of base_motion, the monitor or the recorder: amb-rig notices at once and names the dead node.
+
+Before: 13.6 s (base_motion, reported through the plant as a configuration hint) and 21 s (monitor, recorder)
+until the run failed.  The controller's case is in test_rig_faults.py.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import pytest
+from test_rig_faults import started_pids, wait_gone
+from test_rig_lockstep import rig_json
+
+from procs import spawn
+
+pytestmark = pytest.mark.ros
+
+
+@pytest.mark.parametrize("name", ["base_motion", "monitor", "recorder"])
+def test_kill_9_of_a_node_is_noticed_and_named(tmp_path, venv_bin, name):
+    cmd = [str(venv_bin / "amb-rig"), "run", "--json", "--duration", "100", "--initial-displacement", "1e-4",
+           "--log-dir", str(tmp_path / "logs"), "--bag", str(tmp_path / "bag")]  # fmt: skip
+    with spawn(cmd, tmp_path / "rig.log") as proc:
+        assert proc.wait_for("started plant", 60), proc.text()
+        time.sleep(3.0)  # running (the plant waits for its peers, then steps)
+        pids = started_pids(proc.text())
+        assert proc.popen.poll() is None, proc.text()
+        os.kill(pids[name], signal.SIGKILL)
+        t_kill = time.monotonic()
+        noticed = proc.wait_for(f"amb-rig: {name} died (killed by SIGKILL); stopping the run", 5.0)
+        noticed_s = time.monotonic() - t_kill
+        code = proc.wait(60)
+        text = proc.text()
+    assert noticed and noticed_s < 5.0, text  # issue 20: within ~1-2 s; a loose bound for a loaded machine
+    assert code == 1, text
+    s = rig_json(text)
+    assert s["errors"][0] == f"{name} died (killed by SIGKILL)"
+    assert s["verdict"]["line"].startswith(f"verdict: FAILED: {name} died (killed by SIGKILL)")
+    assert wait_gone(pids.values()) == []
