@@ -114,7 +114,8 @@ def main(argv: list[str] | None = None) -> None:
         from .sensitivity_cmd import main_sensitivity
 
         sys.exit(main_sensitivity(args))
-    try:  # every node's parameters, before anything starts (amb_bringup.paramfile)
+    try:  # amb-rig's own arguments, then every node's parameters, before anything starts
+        check_rig_args(args)  # docs/exit-codes.md: 2
         params = paramfile.prepare(args)
     except AmbError as exc:
         print(f"amb-rig: {exc}", file=sys.stderr)
@@ -132,7 +133,6 @@ def main(argv: list[str] | None = None) -> None:
         print(f"amb-rig: {bad}", file=sys.stderr)
         sys.exit(EXIT_USAGE)
     try:
-        check_rig_args(args)  # every argument before anything starts (docs/exit-codes.md: 2)
         cfg = load_config(args.config, args.set)  # validate before starting anything
     except (AmbError, DdsEnvError) as exc:
         refuse(f"amb-rig: {exc}")
