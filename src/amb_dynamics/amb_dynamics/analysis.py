@@ -10,18 +10,16 @@ from pathlib import Path
 import numpy as np
 
 from . import plots
-from .chart import stability_chart
 from .config import RotorConfig, load_config
+from .digital_floquet import estimate_point
 from .errors import InputError
-from .floquet import aperiodic_exponents, floquet, hybrid_period, sampled_floquet, sampled_lyapunov
+from .floquet import aperiodic_exponents, floquet, sampled_floquet
 from .modes import campbell_data, modes_at_speed
 from .motion import BaseMotion, Harmonic
 from .newmark import disk_initial_state, fit_growth_rate, newmark
 from .sampled import SampledLoop
 from .structure import StructuralModel, build_structure
 from .system import ClosedLoop, closed_loop, periodic_system
-
-LYAPUNOV_PERIODS = 40
 
 
 @dataclass
@@ -122,22 +120,11 @@ def run_floquet(args):
         data = res.to_dict(args.top)
     else:
         loop = SampledLoop(s.model, s.cfg, forcing=False)
-        if ps.period is not None and hybrid_period(ps.period, loop.Ts) is None and not args.snap:
-            lam = sampled_lyapunov(loop, motion, LYAPUNOV_PERIODS, ps.period)
-            data = {
-                "period_s": ps.period,
-                "method": f"lyapunov-qr({LYAPUNOV_PERIODS} periods)",
-                "lyapunov_exponent_1_s": lam,
-                "max_abs_multiplier": float(np.exp(lam * ps.period)),
-                "stable": bool(lam * ps.period < -1e-6),
-                "multipliers": None,
-                "notes": [
-                    f"T/Ts = {ps.period / loop.Ts:.6f} is not p/r with r <= 64: no monodromy; "
-                    "largest Lyapunov exponent instead (use --snap for multipliers)"
-                ],
-            }
-        else:
-            data = sampled_floquet(loop, motion, ps.period, snap=args.snap).to_dict(args.top)
+        if args.snap:
+            data = sampled_floquet(loop, motion, ps.period, snap=True).to_dict(args.top)
+        else:  # exact for T/Ts = p/r, else interpolated in T/Ts with an error bound (digital_floquet)
+            data = estimate_point(loop, motion, ps.period)
+            data["multipliers"] = data["multipliers"][: args.top]
         data["controller_rate_hz"] = 1.0 / loop.Ts
     data.update(model=describe(s.cfg, s.model), controller=args.controller, motion=motion_dict(motion))
     text = [
@@ -177,25 +164,9 @@ def _aperiodic(s: Setup, ps, motion: BaseMotion, args):
 
 
 def run_chart(args):
-    s = setup(args)
-    if (args.frequency <= 0).any() or (args.amplitude < 0).any():
-        raise InputError("chart frequencies must be > 0 rad/s and amplitudes >= 0 rad")
-    res = stability_chart(
-        s.loop, args.motion, args.frequency, args.amplitude, s.cfg.spin_rad_s, workers=args.workers, progress=True
-    )
-    title = f"{describe(s.cfg, s.model)}\n{args.motion}, spin {s.cfg.spin_speed_rpm:g} rpm: max|mu| per period"
-    png = plots.chart_figure(res.omegas, res.amplitudes, res.rho, title, args.out)
-    data = res.to_dict()
-    data.update(model=describe(s.cfg, s.model), png=str(png))
-    if args.json_out:
-        _write_json(args.json_out, data)
-    text = (
-        f"chart {res.rho.shape[0]}x{res.rho.shape[1]} in {res.seconds:.2f} s: "
-        f"{data['unstable_points']} unstable points, max|mu| = {res.rho.max():.6f}\nPNG: {png}"
-        + (f"\nJSON: {args.json_out}" if args.json_out else "")
-    )
-    summary = {k: v for k, v in data.items() if k not in ("max_abs_multiplier", "critical_frequency_rad_s")}
-    return summary, text
+    from .chart_cli import run_chart as chart_verb
+
+    return chart_verb(args, setup(args), describe)
 
 
 def run_simulate(args):

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from . import analysis
+from .chart_cli import add_chart_args
+from .dask_exec import Interrupted
 from .errors import AmbError
 
 
@@ -107,7 +109,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="write the grid of max|mu| as JSON to this file",
     )
-    p.add_argument("--workers", type=int, default=None)
+    add_chart_args(p)
     p = sub.add_parser("simulate", help="Newmark-beta time response from the paper's 1 mm disk displacement")
     _common(p)
     _motion(p)
@@ -125,6 +127,9 @@ def main(argv: list[str] | None = None) -> int:
     except AmbError as exc:
         print(f"amb-dynamics {args.verb}: error: {exc}", file=sys.stderr)
         return 2
+    except Interrupted as exc:  # first Ctrl-C / SIGTERM of a chart or sweep: workers killed, nothing half-written
+        print(f"\namb-dynamics {args.verb}: stopped by signal {exc.signum}", file=sys.stderr)
+        return 128 + exc.signum
     if args.json:
         json.dump(result, sys.stdout, indent=1)
         print()
