@@ -46,6 +46,8 @@ def run_chart(args, s, describe) -> tuple[dict, str]:
     spec = ChartSpec(s.cfg, args.motion, args.controller, args.delay_samples)
     t0 = time.perf_counter()
     cache = None if args.no_cache else args.cache_dir
+    if args.workers is None and args.scheduler is None and args.controller == "continuous":
+        args.workers = 1  # ~2 s of work: starting a local cluster (2-8 s here) would cost more than it saves
     res = run_chart_job(spec, args.frequency, args.amplitude, cache, args.workers, args.scheduler, args.rows_per_chunk)
     seconds = time.perf_counter() - t0
     doc = chart_document(spec, args.frequency, args.amplitude, res, seconds)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -129,7 +130,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except Interrupted as exc:  # first Ctrl-C / SIGTERM of a chart or sweep: workers killed, nothing half-written
         print(f"\namb-dynamics {args.verb}: stopped by signal {exc.signum}", file=sys.stderr)
-        return 128 + exc.signum
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(128 + exc.signum)  # workers are killed; skip the cluster's atexit close (seconds)
     if args.json:
         json.dump(result, sys.stdout, indent=1)
         print()

@@ -19,6 +19,7 @@ import json
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -151,20 +152,47 @@ class ChunkRunner:
         self.cached = len(results) - len(todo)
         done = self.cached
         self._report(done)
-        with _Signals():
-            if todo and self.scheduler is None and self.workers == 1:
-                for i in todo:
-                    results[i] = self.fn(*self.chunks[i])
-                    self._store(i, results[i])
-                    done += 1
-                    self._report(done)
-            elif todo:
-                self._run_dask(todo, results, done)
-        if self.progress:
-            print(file=sys.stderr)
+        try:
+            with _Signals():
+                if todo and self.scheduler is None and self.workers == 1:
+                    for i in todo:
+                        results[i] = self.fn(*self.chunks[i])
+                        self._store(i, results[i])
+                        done += 1
+                        self._report(done)
+                elif todo:
+                    self._run_dask(todo, results, done)
+        finally:
+            if self.progress:
+                print(file=sys.stderr, flush=True)  # end the progress line (also before an error)
         return results  # type: ignore[return-value]
 
     def _run_dask(self, todo: list[int], results: list, done: int) -> None:
+        """Dask in a thread with SIGINT/SIGTERM blocked (so are the threads it starts): the signals reach the main
+        thread, which only waits, and stop the run at once (a signal taken by a Dask thread would wait for
+        whatever the main thread blocks on, up to 10 s)."""
+        finished, box = threading.Event(), {}
+
+        def body():
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+            try:
+                self._dask_body(todo, results, done)
+            except BaseException as exc:  # handed to the main thread
+                box["exc"] = exc
+            finally:
+                finished.set()
+
+        threading.Thread(target=body, name="amb-dask", daemon=True).start()
+        try:
+            while not finished.wait(0.1):
+                pass
+        except Interrupted:
+            _kill_local(None)
+            raise
+        if "exc" in box:
+            raise box["exc"]
+
+    def _dask_body(self, todo: list[int], results: list, done: int) -> None:
         from distributed import Client, LocalCluster, as_completed
 
         cluster = None
@@ -185,9 +213,9 @@ class ChunkRunner:
                     silence_logs=40,
                 )
                 client = Client(cluster, set_as_default=False)
-        except Interrupted:
+        except OSError as exc:
             _kill_local(cluster)
-            raise
+            raise InputError(f"cannot start a local Dask cluster: {exc}") from None
         ok = False
         try:
             futures = {client.submit(self.fn, *self.chunks[i], pure=False): i for i in todo}
@@ -209,12 +237,11 @@ class ChunkRunner:
 
 
 def _kill_local(cluster) -> None:
-    """SIGKILL the local worker processes at once (closing a cluster politely can take seconds)."""
-    if cluster is None:
-        return
-    for nanny in list(getattr(cluster, "workers", {}).values()):
-        proc = getattr(getattr(nanny, "process", None), "process", None)
-        pid = getattr(proc, "pid", None)
-        if pid:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(pid, signal.SIGKILL)
+    """SIGKILL this process's worker processes at once (closing a cluster politely takes seconds, and a cluster
+    interrupted while it starts has no handle yet): every child process of this process, by pid."""
+    import psutil
+
+    for child in psutil.Process().children(recursive=True):
+        with contextlib.suppress(psutil.Error):
+            if "resource_tracker" not in " ".join(child.cmdline()):  # exits with this process by itself
+                child.kill()
