@@ -17,6 +17,7 @@ from .floquet import aperiodic_exponents, floquet, sampled_floquet
 from .modes import campbell_data, modes_at_speed
 from .motion import BaseMotion, Harmonic
 from .newmark import disk_initial_state, fit_growth_rate, newmark
+from .preflight import digital_over_speeds
 from .sampled import SampledLoop
 from .structure import StructuralModel, build_structure
 from .system import ClosedLoop, closed_loop, periodic_system
@@ -77,10 +78,14 @@ def motion_text(motion: BaseMotion) -> str:
 def run_modes(args):
     s = setup(args)
     results = [modes_at_speed(s.model, s.loop, v) for v in args.speed_rpm]
+    digital = digital_over_speeds(s.model, s.cfg, args.speed_rpm)
     data = {"model": describe(s.cfg, s.model), "speeds": [r.to_dict() for r in results]}
+    for d, dig in zip(data["speeds"], digital, strict=True):
+        d["digital_loop"] = dig
     lines = [data["model"]]
-    for r in results:
-        lines.append(f"\n{r.speed_rpm:g} rpm   freq (rad/s)   freq (Hz)   damping   whirl     eigenvalue")
+    for r, dig in zip(results, digital, strict=True):
+        lines.append(f"\n{r.speed_rpm:g} rpm   {digital_line(dig)}")
+        lines.append(f"{r.speed_rpm:g} rpm   freq (rad/s)   freq (Hz)   damping   whirl     eigenvalue")
         for m in r.modes:
             if args.max_frequency and m.frequency_rad_s > args.max_frequency:
                 continue
@@ -98,13 +103,34 @@ def run_campbell(args):
     t0 = time.perf_counter()
     results = campbell_data(s.model, s.loop, args.speeds)
     out = plots.campbell_figure(results, f"Campbell diagram: {describe(s.cfg, s.model)}", args.out, args.max_frequency)
+    digital = digital_over_speeds(s.model, s.cfg, args.speeds)
     data = {
         "png": str(out),
         "speeds_rpm": args.speeds.tolist(),
         "seconds": time.perf_counter() - t0,
-        "speeds": [r.to_dict() for r in results],
+        "speeds": [r.to_dict() | {"digital_loop": dig} for r, dig in zip(results, digital, strict=True)],
     }
-    return data, f"Campbell diagram ({len(results)} speeds) written to {out}"
+    bad = [d["spin_speed_rpm"] for d in digital if not d["stable"]]
+    worst = max(digital, key=lambda d: d["spectral_radius_per_sample"])
+    verdict = (
+        f"digital loop ({worst['rate_hz']:g} Hz, delay {worst['delay_samples']}) stable at all {len(digital)} speeds, "
+        f"largest max|mu| per sample {worst['spectral_radius_per_sample']:.7g}"
+        if not bad
+        else f"WARNING: the digital loop ({worst['rate_hz']:g} Hz, delay {worst['delay_samples']}) is UNSTABLE at "
+        f"{len(bad)} of {len(digital)} speeds ({min(bad):g}-{max(bad):g} rpm; max|mu| per sample up to "
+        f"{worst['spectral_radius_per_sample']:.6g})"
+    )
+    return data, f"Campbell diagram ({len(results)} speeds) written to {out}\n{verdict}"
+
+
+def digital_line(d: dict) -> str:
+    """One line: the digital loop's verdict at rest (preflight.digital_at_rest)."""
+    word = "stable" if d["stable"] else "UNSTABLE"
+    return (
+        f"digital loop {d['rate_hz']:g} Hz, delay {d['delay_samples']}: {word}, max|mu| per sample "
+        f"{d['spectral_radius_per_sample']:.7g} (margin {d['margin']:.3g}; slowest pole {d['growth_rate_1_s']:.4g} 1/s "
+        f"at {d['frequency_rad_s']:.5g} rad/s)"
+    )
 
 
 def run_floquet(args):
