@@ -195,6 +195,12 @@ def run_chart(args):
     return chart_verb(args, setup(args), describe)
 
 
+def run_sweep(args):
+    from .sweep import run_sweep as sweep_verb
+
+    return sweep_verb(args, describe)
+
+
 def run_simulate(args):
     s = setup(args)
     motion = motion_of(args, s.cfg)

@@ -1,4 +1,7 @@
-"""``amb-dynamics``: modes | campbell | floquet | chart | simulate.  Data to stdout (``--json``), logs to stderr."""
+"""``amb-dynamics``: modes | campbell | floquet | chart | sweep | simulate.
+
+Data to stdout (``--json``), logs to stderr.
+"""
 
 from __future__ import annotations
 
@@ -14,6 +17,7 @@ from . import analysis
 from .chart_cli import add_chart_args
 from .dask_exec import Interrupted
 from .errors import AmbError
+from .sweep import add_sweep_parser
 
 
 def grid(text: str) -> np.ndarray:
@@ -111,6 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="write the grid of max|mu| as JSON to this file",
     )
     add_chart_args(p)
+    add_sweep_parser(sub, _common, grid)
     p = sub.add_parser("simulate", help="Newmark-beta time response from the paper's 1 mm disk displacement")
     _common(p)
     _motion(p)
