@@ -13,7 +13,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from amb_ros.env import ensure_localhost_dds
 
-BENCHMARKS = ("bench_dynamics", "bench_lockstep", "bench_bag", "bench_recording_cost", "bench_monitor")
+BENCHMARKS = ("bench_dynamics", "bench_charts", "bench_lockstep", "bench_bag", "bench_recording_cost", "bench_monitor")
 
 
 def main() -> int:

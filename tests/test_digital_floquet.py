@@ -108,3 +108,15 @@ def test_chart_row_equals_single_point_estimate(paper):
     point = estimate_point(loop, BaseMotion.single("pitch", 0.4, W), T)
     assert abs(row.rho[6] - point["max_abs_multiplier"]) <= 1e-10
     assert row.bound[6] >= point["error_bound"]
+
+
+def test_chart_row_with_one_sample_delay_equals_single_point(paper):
+    cfg, model, _ = paper
+    loop = SampledLoop(model, cfg, delay_samples=1, forcing=False)
+    omega = np.pi / (700 * loop.Ts)
+    row = digital_row(loop, "pitch", omega, np.array([0.2, 0.45]))
+    ref_loop = SampledLoop(model, cfg, delay_samples=1, forcing=False)
+    ref = sampled_floquet(ref_loop, BaseMotion.single("pitch", 0.45, omega), np.pi / omega).max_abs
+    assert abs(row.rho[1] - ref) <= 1e-10 * ref  # relative: with the delay this loop is unstable at rest
+    no_delay = digital_row(SampledLoop(model, cfg, forcing=False), "pitch", omega, np.array([0.45])).rho[0]
+    assert abs(no_delay - row.rho[1]) > 1e-6  # the delay changes the answer: it is really in the maps

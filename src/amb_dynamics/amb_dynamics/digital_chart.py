@@ -27,7 +27,7 @@ from .motion import BaseMotion
 from .sampled import SampledLoop
 
 CHART_MAX_R = 4  # exact hybrid products in a chart only for r <= 4 (cost r T/Ts steps); otherwise interpolation
-U_NODES = 10
+U_NODES = 6
 STEP_TOL = 1e-13  # max entry error of an interpolated step map, relative to max |F|
 A_NODES = 6
 AMP_TOL = 1e-10  # |rho_interp - rho_exact| at the check amplitudes
