@@ -27,6 +27,7 @@ os.environ.update(single_thread_env())  # one BLAS thread for every benchmark an
 
 BENCHMARKS = (
     "bench_dynamics",
+    "bench_charts",
     "bench_lockstep",
     "bench_bag",
     "bench_recording_cost",

@@ -29,6 +29,7 @@ from pathlib import Path
 
 from amb_dynamics.config import load_config
 from amb_dynamics.errors import AmbError
+from amb_dynamics.preflight import rig_preflight
 from amb_ros.discovery import DiscoveryError, apply_choice
 from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds, hold_run_lock
 from amb_ros.shm_clean import clean_stale_shm
@@ -78,6 +79,7 @@ def parser() -> argparse.ArgumentParser:
         "starve; without permission the nodes run normally and say so)",
     )
     r.add_argument("--json", action="store_true", help="print the summary as JSON")
+    r.add_argument("--force", action="store_true", help="run even if the digital loop is unstable at rest (warns)")
     r.add_argument("--no-plant", action="store_true", help="no plant: a real rig supplies /amb/displacement")
     r.add_argument("--bag", help="record the run with amb-bag into this folder")
     r.add_argument("--no-monitor", action="store_true", help="do not start the stability monitor")
@@ -134,6 +136,11 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(EXIT_USAGE)
     try:
         cfg = load_config(args.config, args.set)  # validate before starting anything
+        stable, line = rig_preflight(cfg)  # the digital loop at rest, before any node starts
+        if not stable and not args.force:
+            refuse(f"amb-rig: refusing to run: {line} (or --force)")
+        if not stable:
+            print(f"amb-rig: WARNING (--force): {line}", file=sys.stderr)
     except (AmbError, DdsEnvError) as exc:
         refuse(f"amb-rig: {exc}")
     if args.rt_priority is None:

@@ -12,18 +12,17 @@ import numpy as np
 
 from . import guards, plots
 from .analysis_sensitivity import run_sensitivity  # noqa: F401  (the `sensitivity` verb)
-from .chart import stability_chart
 from .config import RotorConfig, load_config
+from .digital_floquet import estimate_point
 from .errors import InputError
-from .floquet import aperiodic_exponents, floquet, hybrid_period, sampled_floquet, sampled_lyapunov
+from .floquet import aperiodic_exponents, floquet, hybrid_period, sampled_floquet
 from .modes import campbell_data, modes_at_speed
 from .motion import BaseMotion, Harmonic
 from .newmark import disk_initial_state, fit_growth_rate, newmark
+from .preflight import digital_over_speeds
 from .sampled import SampledLoop
 from .structure import StructuralModel, build_structure
 from .system import ClosedLoop, closed_loop, periodic_system
-
-LYAPUNOV_PERIODS = 40
 
 
 @dataclass
@@ -83,10 +82,14 @@ def motion_text(motion: BaseMotion) -> str:
 def run_modes(args):
     s = setup(args)
     results = [modes_at_speed(s.model, s.loop, v) for v in args.speed_rpm]
+    digital = digital_over_speeds(s.model, s.cfg, args.speed_rpm)
     data = {"model": describe(s.cfg, s.model), "speeds": [r.to_dict() for r in results]}
+    for d, dig in zip(data["speeds"], digital, strict=True):
+        d["digital_loop"] = dig
     lines = [data["model"]]
-    for r in results:
-        lines.append(f"\n{r.speed_rpm:g} rpm   freq (rad/s)   freq (Hz)   damping   whirl     eigenvalue")
+    for r, dig in zip(results, digital, strict=True):
+        lines.append(f"\n{r.speed_rpm:g} rpm   {digital_line(dig)}")
+        lines.append(f"{r.speed_rpm:g} rpm   freq (rad/s)   freq (Hz)   damping   whirl     eigenvalue")
         for m in r.modes:
             if args.max_frequency and m.frequency_rad_s > args.max_frequency:
                 continue
@@ -104,13 +107,34 @@ def run_campbell(args):
     t0 = time.perf_counter()
     results = campbell_data(s.model, s.loop, args.speeds)
     out = plots.campbell_figure(results, f"Campbell diagram: {describe(s.cfg, s.model)}", args.out, args.max_frequency)
+    digital = digital_over_speeds(s.model, s.cfg, args.speeds)
     data = {
         "png": str(out),
         "speeds_rpm": args.speeds.tolist(),
         "seconds": time.perf_counter() - t0,
-        "speeds": [r.to_dict() for r in results],
+        "speeds": [r.to_dict() | {"digital_loop": dig} for r, dig in zip(results, digital, strict=True)],
     }
-    return data, f"Campbell diagram ({len(results)} speeds) written to {out}"
+    bad = [d["spin_speed_rpm"] for d in digital if not d["stable"]]
+    worst = max(digital, key=lambda d: d["spectral_radius_per_sample"])
+    verdict = (
+        f"digital loop ({worst['rate_hz']:g} Hz, delay {worst['delay_samples']}) stable at all {len(digital)} speeds, "
+        f"largest max|mu| per sample {worst['spectral_radius_per_sample']:.7g}"
+        if not bad
+        else f"WARNING: the digital loop ({worst['rate_hz']:g} Hz, delay {worst['delay_samples']}) is UNSTABLE at "
+        f"{len(bad)} of {len(digital)} speeds ({min(bad):g}-{max(bad):g} rpm; max|mu| per sample up to "
+        f"{worst['spectral_radius_per_sample']:.6g})"
+    )
+    return data, f"Campbell diagram ({len(results)} speeds) written to {out}\n{verdict}"
+
+
+def digital_line(d: dict) -> str:
+    """One line: the digital loop's verdict at rest (preflight.digital_at_rest)."""
+    word = "stable" if d["stable"] else "UNSTABLE"
+    return (
+        f"digital loop {d['rate_hz']:g} Hz, delay {d['delay_samples']}: {word}, max|mu| per sample "
+        f"{d['spectral_radius_per_sample']:.7g} (margin {d['margin']:.3g}; slowest pole {d['growth_rate_1_s']:.4g} 1/s "
+        f"at {d['frequency_rad_s']:.5g} rad/s)"
+    )
 
 
 def run_floquet(args):
@@ -126,25 +150,15 @@ def run_floquet(args):
         data = res.to_dict(args.top)
     else:
         loop = SampledLoop(s.model, s.cfg, forcing=False)
-        pr = hybrid_period(ps.period, loop.Ts)
-        cost = pr[0] if pr else (round(ps.period / loop.Ts) if args.snap else LYAPUNOV_PERIODS * ps.period / loop.Ts)
+        pr = hybrid_period(ps.period, loop.Ts) if ps.period is not None else None
+        # work in controller samples: the hybrid period, or the three integer ratios of the estimate
+        cost = pr[0] if pr else (1 if args.snap else 3) * round((ps.period or 0.0) / loop.Ts)
         guards.check_sampled(ps.period, loop.Ts, int(cost))
-        if ps.period is not None and pr is None and not args.snap:
-            lam = sampled_lyapunov(loop, motion, LYAPUNOV_PERIODS, ps.period)
-            data = {
-                "period_s": ps.period,
-                "method": f"lyapunov-qr({LYAPUNOV_PERIODS} periods)",
-                "lyapunov_exponent_1_s": lam,
-                "max_abs_multiplier": float(np.exp(lam * ps.period)),
-                "stable": bool(lam * ps.period < -1e-6),
-                "multipliers": None,
-                "notes": [
-                    f"T/Ts = {ps.period / loop.Ts:.6f} is not p/r with r <= 64: no monodromy; "
-                    "largest Lyapunov exponent instead (use --snap for multipliers)"
-                ],
-            }
-        else:
-            data = sampled_floquet(loop, motion, ps.period, snap=args.snap).to_dict(args.top)
+        if args.snap:
+            data = sampled_floquet(loop, motion, ps.period, snap=True).to_dict(args.top)
+        else:  # exact for T/Ts = p/r, else interpolated in T/Ts with an error bound (digital_floquet)
+            data = estimate_point(loop, motion, ps.period)
+            data["multipliers"] = data["multipliers"][: args.top]
         data["controller_rate_hz"] = 1.0 / loop.Ts
     data.update(model=describe(s.cfg, s.model), controller=args.controller, motion=motion_dict(motion))
     text = [
@@ -184,25 +198,15 @@ def _aperiodic(s: Setup, ps, motion: BaseMotion, args):
 
 
 def run_chart(args):
-    s = setup(args)
-    if (args.frequency <= 0).any() or (args.amplitude < 0).any():
-        raise InputError("chart frequencies must be > 0 rad/s and amplitudes >= 0 rad")
-    res = stability_chart(
-        s.loop, args.motion, args.frequency, args.amplitude, s.cfg.spin_rad_s, workers=args.workers, progress=True
-    )
-    title = f"{describe(s.cfg, s.model)}\n{args.motion}, spin {s.cfg.spin_speed_rpm:g} rpm: max|mu| per period"
-    png = plots.chart_figure(res.omegas, res.amplitudes, res.rho, title, args.out)
-    data = res.to_dict()
-    data.update(model=describe(s.cfg, s.model), png=str(png))
-    if args.json_out:
-        _write_json(args.json_out, data)
-    text = (
-        f"chart {res.rho.shape[0]}x{res.rho.shape[1]} in {res.seconds:.2f} s: "
-        f"{data['unstable_points']} unstable points, max|mu| = {res.rho.max():.6f}\nPNG: {png}"
-        + (f"\nJSON: {args.json_out}" if args.json_out else "")
-    )
-    summary = {k: v for k, v in data.items() if k not in ("max_abs_multiplier", "critical_frequency_rad_s")}
-    return summary, text
+    from .chart_cli import run_chart as chart_verb
+
+    return chart_verb(args, setup(args), describe)
+
+
+def run_sweep(args):
+    from .sweep import run_sweep as sweep_verb
+
+    return sweep_verb(args, describe)
 
 
 def run_simulate(args):

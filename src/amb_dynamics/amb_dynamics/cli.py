@@ -1,4 +1,4 @@
-"""``amb-dynamics``: modes | campbell | floquet | chart | simulate | sensitivity | unbalance.
+"""``amb-dynamics``: modes | campbell | floquet | chart | sweep | simulate | sensitivity | unbalance.
 
 Data to stdout (``--json``), logs to stderr.
 """
@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -77,6 +78,11 @@ def _motion(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    # these import numpy: only once main() has limited the BLAS threads
+    from . import unbalance_report
+    from .chart_cli import add_chart_args
+    from .sweep import add_sweep_parser
+
     ap = argparse.ArgumentParser(prog="amb-dynamics", description=__doc__)
     sub = ap.add_subparsers(dest="verb", required=True)
     p = sub.add_parser("modes", help="closed-loop modes at constant spin speeds (base at rest)")
@@ -110,7 +116,8 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="write the grid of max|mu| as JSON to this file",
     )
-    p.add_argument("--workers", type=int, default=None)
+    add_chart_args(p)
+    add_sweep_parser(sub, _common, grid)
     p = sub.add_parser("simulate", help="Newmark-beta time response from the paper's 1 mm disk displacement")
     _common(p)
     _motion(p)
@@ -125,7 +132,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--points", type=int, default=2000, help="log-spaced frequencies in the band")
     p.add_argument("--axis", action="append", default=None, help="only this AMB axis, e.g. amb1_y (repeatable)")
     p.add_argument("--out", type=Path, default=None, help="PNG: Bode magnitude per axis with the zone bands")
-    from . import unbalance_report  # imports numpy: only once main() has limited the BLAS threads
 
     unbalance_report.add_parser(sub, _common, grid)
     return ap
@@ -134,6 +140,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     limit_blas_threads()  # first: BLAS reads its thread count when numpy loads (amb_dynamics/threads.py)
     from . import analysis, guards, unbalance_report  # import numpy
+    from .dask_exec import Interrupted
 
     runners = {"unbalance": unbalance_report.run_unbalance}  # verbs outside analysis.py
     args = build_parser().parse_args(argv)
@@ -144,6 +151,11 @@ def main(argv: list[str] | None = None) -> int:
     except AmbError as exc:
         print(f"amb-dynamics {args.verb}: error: {exc}", file=sys.stderr)
         return 2
+    except Interrupted as exc:  # first Ctrl-C / SIGTERM of a chart or sweep: workers killed, nothing half-written
+        print(f"\namb-dynamics {args.verb}: stopped by signal {exc.signum}", file=sys.stderr)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(128 + exc.signum)  # workers are killed; skip the cluster's atexit close (seconds)
     if args.json:
         result, replaced = guards.finite_json(result)  # JSON has no NaN: null, and say where
         if replaced:

@@ -1,0 +1,103 @@
+"""Charts on the paper model (config/seed_paper.yaml): the 100x100 digital-loop pitch chart (default 5 kHz loop) on
+a local Dask cluster, its per-point speed against the straightforward product of one-expm step maps, the 1 -> 2
+local workers speed-up, and the continuous 100x100 chart.  Ratios are measured side by side in this run.
+
+    .venv/bin/python benchmarks/run_all.py bench_charts
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from amb_dynamics.chart_jobs import ChartSpec, chart_chunk
+from amb_dynamics.config import load_config
+from amb_dynamics.dask_exec import ChunkRunner
+from amb_dynamics.digital_chart import digital_row
+from amb_dynamics.digital_floquet import plan_ratio
+from amb_dynamics.floquet import sampled_floquet
+from amb_dynamics.motion import BaseMotion
+from amb_dynamics.sampled import SampledLoop
+from amb_dynamics.structure import build_structure
+
+PAPER = Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml"
+OMEGAS, AMPS = np.linspace(1.0, 40.0, 100), np.linspace(0.0, 0.5, 100)
+PER_POINT_OMEGAS = (5.0, 20.0, 35.0)
+
+
+def _chart(spec, omegas, amps, workers):
+    runner = ChunkRunner(chart_chunk, [(spec, omegas[i : i + 1], amps) for i in range(omegas.size)], "bench",
+                         None, workers, None, progress=False)  # fmt: skip
+    t0 = time.perf_counter()
+    parts = runner.run()
+    total = time.perf_counter() - t0
+    return np.concatenate([p["rho"] for p in parts]), total, runner.compute_seconds or total
+
+
+def per_point(cfg, model, loop) -> tuple[float, float, float]:
+    """(chart s/point, straightforward s/point, max |rho difference| at the compared points)."""
+    t_chart = t_plain = 0.0
+    diff = 0.0
+    for w in PER_POINT_OMEGAS:
+        T = np.pi / w
+        t0 = time.perf_counter()
+        row = digital_row(loop, "pitch", w, AMPS)
+        t_chart += (time.perf_counter() - t0) / AMPS.size
+        plan = plan_ratio(T / loop.Ts, 4)
+        t0 = time.perf_counter()
+        rhos = []
+        for p, r in plan.ratios:  # the same exact products, one scipy expm per step, per point
+            sub = SampledLoop(model, cfg, Ts=r * T / p, forcing=False)
+            rhos.append(sampled_floquet(sub, BaseMotion.single("pitch", AMPS[60], w), T).max_abs)
+        t_plain += time.perf_counter() - t0
+        diff = max(diff, abs(plan.combine(rhos)[0] - row.rho[60]))
+    n = len(PER_POINT_OMEGAS)
+    return t_chart / n, t_plain / n, diff
+
+
+def main() -> dict:
+    cfg = load_config(PAPER)
+    model = build_structure(cfg)
+    loop = SampledLoop(model, cfg, forcing=False)
+    workers = os.cpu_count() or 1
+    t_pt_chart, t_pt_plain, diff = per_point(cfg, model, loop)
+
+    sub_w, sub_a = np.linspace(10.0, 40.0, 16), np.linspace(0.0, 0.5, 20)
+    spec = ChartSpec(cfg, "pitch", "sampled", None)
+    c1 = _chart(spec, sub_w, sub_a, 1)[2]  # serial, in this process (no Dask overhead: the harder baseline)
+    _, tot2, c2 = _chart(spec, sub_w, sub_a, 2)
+
+    rho, t_digital, t_digital_compute = _chart(spec, OMEGAS, AMPS, workers)
+    cont = ChartSpec(cfg, "pitch", "continuous", None)
+    _, t_cont, _ = _chart(cont, OMEGAS, AMPS, 1)
+    res = {
+        "digital_chart_100x100_s": t_digital,
+        "digital_chart_100x100_compute_s": t_digital_compute,
+        "digital_chart_workers": workers,
+        "digital_chart_unstable_points": int((rho > 1 + 1e-6).sum()),
+        "digital_per_point_chart_s": t_pt_chart,
+        "digital_per_point_plain_expm_s": t_pt_plain,
+        "digital_per_point_speedup": t_pt_plain / t_pt_chart,
+        "digital_per_point_rho_difference": diff,
+        "workers_1_s": c1,
+        "workers_2_s": c2,
+        "workers_2_total_with_startup_s": tot2,
+        "speedup_1_to_2_workers": c1 / c2,
+        "continuous_chart_100x100_s": t_cont,
+    }
+    print("charts, config/seed_paper.yaml (5 kHz digital loop, 5000 rad/s modal model)")
+    print(f"  digital pitch chart 100x100, {workers} local workers  {t_digital:8.1f} s "
+          f"(compute {t_digital_compute:.1f} s; goal < 60 s)")  # fmt: skip
+    print(f"  per point: chart {t_pt_chart * 1e3:8.2f} ms, plain expm products {t_pt_plain * 1e3:8.1f} ms: "
+          f"{res['digital_per_point_speedup']:.0f}x (|rho difference| {diff:.1e})")  # fmt: skip
+    print(f"  16x20 digital chart: serial {c1:.2f} s, 2 local workers {c2:.2f} s compute ({tot2:.2f} s with "
+          f"start-up): {res['speedup_1_to_2_workers']:.2f}x (goal >= 1.8x)")  # fmt: skip
+    print(f"  continuous pitch chart 100x100 (serial)     {t_cont:8.2f} s (goal < 5 s)")
+    return res
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,197 @@
+"""Digital-loop stability chart: max|mu| per base period over an (omega, A) grid of a single-axis base motion.
+
+One grid row (fixed omega, all amplitudes) at a time, built on ``SampledLoop.step_map`` only:
+
+1. The sampling ratio x = T/Ts picks the plan (:func:`digital_floquet.plan_ratio`): one exact hybrid product
+   (T/Ts = p/r, r <= ``CHART_MAX_R``) or three integer ratios interpolated in x, with the error bound.
+2. Along a single-axis motion the step map depends on the base rate w = Omega_axis (and its derivative v) only,
+   and for pitch and yaw only on w^2 (both detected numerically from ``step_map``).  F is therefore interpolated
+   (Chebyshev, barycentric) from ``U_NODES`` step maps in u = w^2 (or in (w, v) for roll) instead of one expm per
+   step per point; the interpolation error is measured at probe points and the nodes doubled until it is below
+   ``STEP_TOL`` relative.
+3. The monodromy Psi(A) is an entire function of A^2 (pitch, yaw) or A (roll): the products are formed at
+   ``A_NODES`` Chebyshev amplitudes plus two check amplitudes (the grid amplitudes farthest from the nodes),
+   interpolated to the grid, and the nodes doubled until rho at the check amplitudes agrees to ``AMP_TOL``.
+   The measured check difference is added to the point's error bound.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .chart import _bary_weights, _cheb_nodes, _tree_product
+from .digital_floquet import RatioPlan, plan_ratio
+from .motion import BaseMotion
+from .sampled import SampledLoop
+
+CHART_MAX_R = 4  # exact hybrid products in a chart only for r <= 4 (cost r T/Ts steps); otherwise interpolation
+U_NODES = 6
+STEP_TOL = 1e-13  # max entry error of an interpolated step map, relative to max |F|
+A_NODES = 6
+AMP_TOL = 1e-10  # |rho_interp - rho_exact| at the check amplitudes
+BLOCK = 256  # steps multiplied per batch (memory: nodes x BLOCK x dim^2 doubles)
+METHOD_CODES = {"exact": 0, "interp": 1}
+
+
+@dataclass
+class RowResult:
+    rho: np.ndarray  # (n_A,)
+    bound: np.ndarray  # (n_A,) absolute error bound on rho
+    critical: np.ndarray  # (n_A,) rad/s
+    method: int  # METHOD_CODES
+    steps: int  # step maps per point (sum over the ratios)
+
+
+class StepMapFamily:
+    """Interpolant of the step map F(w, v) along one base axis (rates w e, dOmega v e), for one SampledLoop."""
+
+    def __init__(self, loop: SampledLoop, axis_vec: np.ndarray, wmax: float, vmax: float):
+        self.loop, self.e = loop, axis_vec
+        wmax, vmax = max(wmax, 1e-12), max(vmax, 1e-12)
+        f_wv = self._F(wmax, vmax)
+        self.uses_v = not np.array_equal(f_wv, self._F(wmax, 0.0))
+        self.even = (not self.uses_v) and np.array_equal(self._F(-wmax, 0.0), self._F(wmax, 0.0))
+        self.wmax, self.vmax = wmax, vmax
+        self.scale = float(np.abs(f_wv).max())
+        n = U_NODES
+        while True:
+            self._build(n)
+            err = self._probe_error()
+            if err <= STEP_TOL * self.scale or n >= 64:
+                self.error = err / self.scale
+                break
+            n *= 2
+
+    def _F(self, w: float, v: float) -> np.ndarray:
+        return self.loop.step_map(w * self.e, v * self.e)
+
+    def _build(self, n: int) -> None:
+        self.n = n
+        if self.even:
+            self.nodes = [_cheb_nodes(0.0, self.wmax**2, n)]
+            self.Fn = np.array([self._F(np.sqrt(max(u, 0.0)), 0.0) for u in self.nodes[0]])
+        elif not self.uses_v:
+            self.nodes = [_cheb_nodes(-self.wmax, self.wmax, n)]
+            self.Fn = np.array([self._F(w, 0.0) for w in self.nodes[0]])
+        else:
+            self.nodes = [_cheb_nodes(-self.wmax, self.wmax, n), _cheb_nodes(-self.vmax, self.vmax, n)]
+            self.Fn = np.array([self._F(w, v) for w in self.nodes[0] for v in self.nodes[1]])
+        self.Fflat = self.Fn.reshape(self.Fn.shape[0], -1)
+
+    def weights(self, w: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """(len(w), n_nodes) interpolation weights at the rates (w, v)."""
+        if self.even:
+            return _bary_weights(self.nodes[0], w * w)
+        if not self.uses_v:
+            return _bary_weights(self.nodes[0], w)
+        Ww, Wv = _bary_weights(self.nodes[0], w), _bary_weights(self.nodes[1], v)
+        return (Ww[:, :, None] * Wv[:, None, :]).reshape(len(w), -1)
+
+    def maps(self, w: np.ndarray, v: np.ndarray) -> np.ndarray:
+        d = self.Fn.shape[-1]
+        return (self.weights(w, v) @ self.Fflat).reshape(len(w), d, d)
+
+    def _probe_error(self) -> float:
+        rng = np.random.default_rng(12345)  # fixed probes: the result does not depend on where it ran
+        w = self.wmax * rng.uniform(-1, 1, 3)
+        v = self.vmax * rng.uniform(-1, 1, 3) if self.uses_v else np.zeros(3)
+        approx = self.maps(w, v)
+        return max(float(np.abs(approx[i] - self._F(w[i], v[i] if self.uses_v else 0.0)).max()) for i in range(3))
+
+
+def _amplitude_nodes(amps: np.ndarray, n: int, even: bool):
+    """(node amplitudes, interpolation matrix grid <- nodes or None if exact, indices of the check amplitudes)."""
+    if amps.size <= n:
+        return amps.copy(), None, np.empty(0, dtype=int)
+    lo, hi = float(amps.min()), float(amps.max())
+    if even:
+        s_nodes = _cheb_nodes(lo * lo, hi * hi, n)
+        nodes, W = np.sqrt(s_nodes), _bary_weights(s_nodes, amps * amps)
+        dist = np.abs(amps[:, None] ** 2 - s_nodes[None, :]).min(axis=1)
+    else:
+        nodes = _cheb_nodes(lo, hi, n)
+        W = _bary_weights(nodes, amps)
+        dist = np.abs(amps[:, None] - nodes[None, :]).min(axis=1)
+    return nodes, W, np.sort(np.argsort(-dist, kind="stable")[:2])
+
+
+def ratio_monodromies(fam: StepMapFamily, kind: str, omega: float, p: int, Ts: float, amps: np.ndarray) -> np.ndarray:
+    """Psi(A) = F_{p-1} ... F_0 for each amplitude in ``amps`` (t_k = k Ts), shape (len(amps), d, d)."""
+    unit = BaseMotion.single(kind, 1.0, omega)
+    d = fam.Fn.shape[-1]
+    Psi = np.broadcast_to(np.eye(d), (amps.size, d, d)).copy()
+    for k0 in range(0, p, BLOCK):
+        t = Ts * np.arange(k0, min(p, k0 + BLOCK))
+        Om, dOm = unit.angular_velocity(t)
+        w1, v1 = fam.e @ Om, fam.e @ dOm  # rates along the axis for A = 1 (linear in A)
+        w = (amps[:, None] * w1[None, :]).ravel()
+        v = (amps[:, None] * v1[None, :]).ravel()
+        F = fam.maps(w, v).reshape(amps.size, t.size, d, d)
+        Psi = _tree_product(F) @ Psi
+    return Psi
+
+
+def _crit(Psi: np.ndarray, r: int, T: float) -> tuple[np.ndarray, np.ndarray]:
+    mu = np.linalg.eigvals(Psi)
+    i = np.argmax(np.abs(mu), axis=1)
+    c = mu[np.arange(mu.shape[0]), i]
+    return np.abs(c) ** (1.0 / r), np.abs(np.angle(c)) / (r * T)
+
+
+def ratio_row(loop: SampledLoop, kind: str, omega: float, T: float, p: int, r: int, amps: np.ndarray):
+    """rho and critical frequency per base period at the exact ratio T/Ts' = p/r, with the amplitude check error."""
+    Ts = r * T / p
+    sub = SampledLoop(loop.model, loop.cfg, Ts=Ts, delay_samples=loop.delay, forcing=False)
+    axis = np.zeros(3)
+    axis[{"roll": 0, "yaw": 1, "pitch": 2}[kind]] = 1.0
+    amax = float(np.abs(amps).max())
+    fam = StepMapFamily(sub, axis, amax * omega, amax * omega * omega)
+    n = A_NODES
+    while True:
+        nodes, W, checks = _amplitude_nodes(amps, n, fam.even)
+        Psi = ratio_monodromies(fam, kind, omega, p, Ts, np.concatenate([nodes, amps[checks]]))
+        Pn, Pc = Psi[: nodes.size], Psi[nodes.size :]
+        if W is None:
+            rho, crit = _crit(Pn, r, T)
+            return rho, crit, 0.0
+        Pg = (W @ Pn.reshape(nodes.size, -1)).reshape(amps.size, *Pn.shape[1:])
+        rho, crit = _crit(Pg, r, T)
+        rc, _ = _crit(Pc, r, T)
+        err = float(np.abs(rc - rho[checks]).max())
+        if err <= AMP_TOL or 2 * n >= amps.size:
+            if err > AMP_TOL:  # as many nodes as grid amplitudes: compute every amplitude exactly
+                rho, crit = _crit(ratio_monodromies(fam, kind, omega, p, Ts, amps), r, T)
+                err = 0.0
+            return rho, crit, err
+        n *= 2
+
+
+def digital_row(loop: SampledLoop, kind: str, omega: float, amps: np.ndarray, max_r: int = CHART_MAX_R) -> RowResult:
+    """One chart row: rho, error bound and critical frequency for every amplitude at base frequency ``omega``."""
+    amps = np.asarray(amps, dtype=float)
+    T = parametric_period(loop, kind, omega)
+    plan: RatioPlan = plan_ratio(T / loop.Ts, max_r)
+    outs = [ratio_row(loop, kind, omega, T, p, r, amps) for p, r in plan.ratios]
+    nearest = min(range(len(outs)), key=lambda i: abs(plan.ratios[i][0] / plan.ratios[i][1] - plan.x))
+    rho = np.empty(amps.size)
+    bound = np.empty(amps.size)
+    for j in range(amps.size):
+        rho[j], bound[j] = plan.combine([o[0][j] for o in outs])
+    bound += max(o[2] for o in outs)
+    steps = sum(p for p, _ in plan.ratios)
+    return RowResult(rho, bound, outs[nearest][1], METHOD_CODES[plan.kind], steps)
+
+
+def parametric_period(loop: SampledLoop, kind: str, omega: float) -> float:
+    """Period of the step maps along the motion: pi/omega if they depend on the rate squared only (pitch and yaw,
+    detected from ``step_map``), else 2 pi/omega."""
+    axis = np.zeros(3)
+    axis[{"roll": 0, "yaw": 1, "pitch": 2}[kind]] = 1.0
+    w, v = omega * 0.1, omega * omega * 0.1
+    F = loop.step_map(w * axis, 0.0 * axis)
+    even = np.array_equal(F, loop.step_map(w * axis, v * axis)) and np.array_equal(
+        F, loop.step_map(-w * axis, 0 * axis)
+    )
+    return (np.pi if even else 2 * np.pi) / omega
