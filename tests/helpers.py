@@ -12,10 +12,16 @@ The physics tests have their own module, tests/physics_helpers.py.
 from __future__ import annotations
 
 import json
+import os
+import re
+import socket
+import struct
 import threading
+import time
 
 import numpy as np
 
+from amb_bringup.supervisor import alive
 from amb_dynamics import BaseMotion, SampledLoop, build_structure, load_config, sampled_floquet
 from amb_dynamics.estimator.mapfit import forcing_regressors
 from procs import spawn
@@ -114,3 +120,87 @@ def synthetic(mu, cols, m=60, forcing="alternating", seed=0, noise=0.0):
 
 def matched(got, expected):
     return max(np.min(np.abs(got - z)) for z in expected)
+
+
+def started_pids(text: str) -> dict[str, int]:
+    return {name: int(pid) for name, pid in re.findall(r"started (\w+) \(pid (\d+)\)", text)}
+
+
+def wait_gone(pids, timeout=10.0) -> list[int]:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and any(alive(p) for p in pids):
+        time.sleep(0.05)
+    return [p for p in pids if alive(p)]
+
+
+# ---- packet capture on this machine's interfaces (moved from test_ros_localhost.py) ------------------------------
+ETH_P_ALL = 0x0003
+PACKET_OUTGOING = 4
+
+
+def interfaces() -> list[str]:
+    return [name for name in os.listdir("/sys/class/net") if name != "lo"
+            and open(f"/sys/class/net/{name}/operstate").read().strip() in ("up", "unknown")]  # fmt: skip
+
+
+class Sniffer:
+    """Counts outgoing frames on the given interfaces that look like DDS traffic."""
+
+    def __init__(self, ifaces: list[str], domain: int):
+        self.lo, self.hi = 7400 + 250 * domain, 7400 + 250 * domain + 249
+        self.hits: list[str] = []
+        self.frames = 0
+        self._stop = threading.Event()
+        self.socks = []
+        for name in ifaces:
+            s = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ETH_P_ALL))
+            s.bind((name, 0))
+            s.settimeout(0.05)
+            self.socks.append(s)
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        while not self._stop.is_set():
+            for s in self.socks:
+                try:
+                    frame, addr = s.recvfrom(65535)
+                except TimeoutError:
+                    continue
+                if addr[2] == PACKET_OUTGOING:
+                    self.frames += 1
+                    why = self.classify(frame)
+                    if why:
+                        self.hits.append(f"{addr[0]}: {why}")
+
+    def classify(self, frame: bytes) -> str | None:
+        ethertype = struct.unpack("!H", frame[12:14])[0]
+        if ethertype == 0x0800:
+            ihl = (frame[14] & 0x0F) * 4
+            proto, dst = frame[23], frame[30:34]
+            if dst[0] >= 224 and dst[0] <= 239:
+                return f"IPv4 multicast to {socket.inet_ntoa(dst)}"
+            if proto != 17:
+                return None
+            udp = 14 + ihl
+        elif ethertype == 0x86DD:
+            if frame[38] == 0xFF:
+                return "IPv6 multicast"
+            if frame[20] != 17:
+                return None
+            udp = 14 + 40
+        else:
+            return None
+        dport = struct.unpack("!H", frame[udp + 2 : udp + 4])[0]
+        payload = frame[udp + 8 : udp + 12]
+        if payload == b"RTPS":
+            return f"RTPS to port {dport}"
+        if self.lo <= dport <= self.hi:
+            return f"UDP to DDS port {dport}"
+        return None
+
+    def close(self):
+        self._stop.set()
+        self.thread.join(2)
+        for s in self.socks:
+            s.close()

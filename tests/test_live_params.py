@@ -166,9 +166,9 @@ def test_param_at_switches_at_the_first_sample_after_T_and_is_in_the_bag(tmp_pat
     from rcl_interfaces.msg import ParameterEvent
     from rclpy.serialization import deserialize_message
     from sensor_msgs.msg import JointState
-    from test_rig_lockstep import run_rig
 
     from amb_bag.reader import Bag
+    from helpers import run_rig
 
     duration, t_at, new_kp, disk_v = 0.2, 0.1001, 2.0e4, 1e-4
     k_switch = 501  # first k with k * 0.2 ms >= 100.1 ms

@@ -17,14 +17,10 @@ import time
 import pytest
 
 from amb_bringup.supervisor import alive
-from helpers import rig_json
+from helpers import rig_json, started_pids, wait_gone
 from procs import spawn
 
 pytestmark = pytest.mark.ros
-
-
-def started_pids(text: str) -> dict[str, int]:
-    return {name: int(pid) for name, pid in re.findall(r"started (\w+) \(pid (\d+)\)", text)}
 
 
 def kill_controller_mid_run(tmp_path, venv_bin, args, progress: int = 500):
@@ -58,13 +54,6 @@ def kill_controller_mid_run(tmp_path, venv_bin, args, progress: int = 500):
     finally:
         rec.close()
     return code, text, pids
-
-
-def wait_gone(pids, timeout=10.0) -> list[int]:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end and any(alive(p) for p in pids):
-        time.sleep(0.05)
-    return [p for p in pids if alive(p)]
 
 
 def test_killed_controller_in_lockstep_fails_the_run_cleanly(tmp_path, venv_bin):

@@ -11,9 +11,8 @@ import signal
 import time
 
 import pytest
-from test_rig_faults import started_pids, wait_gone
-from test_rig_lockstep import rig_json
 
+from helpers import rig_json, started_pids, wait_gone
 from procs import spawn
 
 pytestmark = pytest.mark.ros

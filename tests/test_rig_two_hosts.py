@@ -19,9 +19,8 @@ import subprocess
 import time
 
 import pytest
-from test_rig_lockstep import rig_json
-from test_ros_localhost import Sniffer, interfaces
 
+from helpers import Sniffer, interfaces, rig_json
 from procs import spawn
 
 pytestmark = [

@@ -10,10 +10,10 @@ from __future__ import annotations
 import os
 
 import pytest
-from test_rig_lockstep import rig_json
 
 from amb_bag.loss import CUSTOM_KEY
 from amb_bag.metadata import custom_json, load_metadata
+from helpers import rig_json
 from procs import spawn
 
 pytestmark = pytest.mark.ros

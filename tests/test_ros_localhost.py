@@ -12,90 +12,17 @@ import os
 import re
 import shutil
 import socket
-import struct
 import subprocess
 import sys
-import threading
 import time
 
 import pytest
 
 from amb_ros.env import child_env
-from helpers import run_rig
+from helpers import Sniffer, interfaces, run_rig
 from procs import spawn
 
 pytestmark = pytest.mark.ros
-
-ETH_P_ALL = 0x0003
-PACKET_OUTGOING = 4
-
-
-def interfaces() -> list[str]:
-    return [name for name in os.listdir("/sys/class/net") if name != "lo"
-            and open(f"/sys/class/net/{name}/operstate").read().strip() in ("up", "unknown")]  # fmt: skip
-
-
-class Sniffer:
-    """Counts outgoing frames on the given interfaces that look like DDS traffic."""
-
-    def __init__(self, ifaces: list[str], domain: int):
-        self.lo, self.hi = 7400 + 250 * domain, 7400 + 250 * domain + 249
-        self.hits: list[str] = []
-        self.frames = 0
-        self._stop = threading.Event()
-        self.socks = []
-        for name in ifaces:
-            s = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ETH_P_ALL))
-            s.bind((name, 0))
-            s.settimeout(0.05)
-            self.socks.append(s)
-        self.thread = threading.Thread(target=self._run, daemon=True)
-        self.thread.start()
-
-    def _run(self):
-        while not self._stop.is_set():
-            for s in self.socks:
-                try:
-                    frame, addr = s.recvfrom(65535)
-                except TimeoutError:
-                    continue
-                if addr[2] == PACKET_OUTGOING:
-                    self.frames += 1
-                    why = self.classify(frame)
-                    if why:
-                        self.hits.append(f"{addr[0]}: {why}")
-
-    def classify(self, frame: bytes) -> str | None:
-        ethertype = struct.unpack("!H", frame[12:14])[0]
-        if ethertype == 0x0800:
-            ihl = (frame[14] & 0x0F) * 4
-            proto, dst = frame[23], frame[30:34]
-            if dst[0] >= 224 and dst[0] <= 239:
-                return f"IPv4 multicast to {socket.inet_ntoa(dst)}"
-            if proto != 17:
-                return None
-            udp = 14 + ihl
-        elif ethertype == 0x86DD:
-            if frame[38] == 0xFF:
-                return "IPv6 multicast"
-            if frame[20] != 17:
-                return None
-            udp = 14 + 40
-        else:
-            return None
-        dport = struct.unpack("!H", frame[udp + 2 : udp + 4])[0]
-        payload = frame[udp + 8 : udp + 12]
-        if payload == b"RTPS":
-            return f"RTPS to port {dport}"
-        if self.lo <= dport <= self.hi:
-            return f"UDP to DDS port {dport}"
-        return None
-
-    def close(self):
-        self._stop.set()
-        self.thread.join(2)
-        for s in self.socks:
-            s.close()
 
 
 @pytest.mark.skipif(os.geteuid() != 0, reason="AF_PACKET capture needs root")

@@ -15,9 +15,9 @@ import threading
 import time
 
 import pytest
-from test_rig_lockstep import DdsRecorder
 
 from amb_bringup.udp_bridge import COMMAND_MAGIC, SAMPLE_MAGIC, frame, unframe
+from helpers import DdsRecorder
 from procs import spawn
 
 pytestmark = pytest.mark.ros
