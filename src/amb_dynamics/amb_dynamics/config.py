@@ -18,29 +18,21 @@ from typing import Any
 
 import yaml
 
+from .config_fields import spec as _f
+from .config_rig import (
+    ActuatorConfig,
+    DisturbanceConfig,
+    GravityConfig,
+    SensorConfig,
+    SpinConfig,
+    StructuralDampingConfig,
+    TouchdownConfig,
+    check_rig,
+)
 from .errors import ConfigError
 
 SEED_CONFIG_NAME = "seed_rotor.yaml"
 _FLOAT_RE = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
-
-
-def _f(
-    unit: str = "",
-    lo: float | None = None,
-    hi: float | None = None,
-    *,
-    open_lo: bool = False,
-    choices: tuple | None = None,
-    default: Any = dataclasses.MISSING,
-    doc: str = "",
-):
-    """A dataclass field with unit, range and choices for validation."""
-    meta = {"unit": unit, "lo": lo, "hi": hi, "open_lo": open_lo, "choices": choices, "doc": doc}
-    if default is dataclasses.MISSING:
-        return field(metadata=meta)
-    if isinstance(default, list | dict):
-        return field(default_factory=lambda: default, metadata=meta)
-    return field(default=default, metadata=meta)
 
 
 @dataclass(frozen=True)
@@ -61,6 +53,11 @@ class DiskConfig:
     diameter: float = _f("m", 0.0, open_lo=True)
     thickness: float = _f("m", 0.0, open_lo=True)
     bore: float = _f("m", 0.0, default=0.0, doc="inner diameter of an annular disk")
+    unbalance: float | None = _f("kg m", 0.0, default=None, doc="m_u e at the disk node; null = none")
+    unbalance_phase_deg: float = _f("deg", default=0.0, doc="angle of the heavy spot from +Y toward +Z at phi = 0")
+    balance_grade: float | None = _f(
+        "mm/s", 0.0, open_lo=True, default=None, doc="ISO 21940-11 G: U = m_disk G/Omega(max_speed_rpm)"
+    )
 
 
 @dataclass(frozen=True)
@@ -71,6 +68,13 @@ class BearingConfig:
     bias_current: float = _f("A", 0.0, default=5.0)
     air_gap: float = _f("m", 0.0, open_lo=True, default=2.5e-3)
     pole_area: float = _f("m^2", 0.0, default=5.0e-4)
+    force_law: str = _f(
+        choices=("linear", "nonlinear"), default="linear", doc="nonlinear: differential law about (i0, g0)"
+    )
+    pole_angle_deg: float = _f("deg", 0.0, 89.0, default=22.5, doc="half-angle between a magnet's two poles")
+    saturation_flux_density: float | None = _f(
+        "T", 0.0, open_lo=True, default=None, doc="nonlinear: magnet force <= cos(alpha) A_p B_sat^2/mu0; null = off"
+    )
 
 
 @dataclass(frozen=True)
@@ -82,6 +86,9 @@ class ControllerConfig:
     derivative_filter_hz: float | None = _f("Hz", 0.0, open_lo=True, default=None)
     current_limit: float = _f("A", 0.0, open_lo=True, default=10.0)
     delay_samples: int = _f("", 0, 1, default=0)
+    bias_current_offset: tuple[float, ...] = _f(
+        "A", default=(), doc="static control current per AMB axis (amb1_y, amb1_z, amb5_y, amb5_z); empty = none"
+    )
 
 
 @dataclass(frozen=True)
@@ -114,6 +121,14 @@ class RotorConfig:
     base_forcing: bool = _f(default=False, doc="inertial load of the base rotation (PHYSICS.md 4.7) in time runs")
     modal_cutoff: float | None = _f("rad/s", 0.0, open_lo=True, default=None)
     base_motion: BaseMotionConfig = field(default_factory=BaseMotionConfig)
+    max_speed_rpm: float | None = _f("rpm", 0.0, open_lo=True, default=None, doc="maximum service speed")
+    actuator: ActuatorConfig = field(default_factory=ActuatorConfig)
+    sensor: SensorConfig = field(default_factory=SensorConfig)
+    structural_damping: StructuralDampingConfig = field(default_factory=StructuralDampingConfig)
+    gravity: GravityConfig = field(default_factory=GravityConfig)
+    disturbances: DisturbanceConfig = field(default_factory=DisturbanceConfig)
+    touchdown: TouchdownConfig = field(default_factory=TouchdownConfig)
+    spin: SpinConfig = field(default_factory=SpinConfig)
     source: str = field(default="<memory>", compare=False, metadata={"internal": True})
 
     @property
@@ -304,3 +319,4 @@ def _check_topology(cfg: RotorConfig, source: str) -> None:
         raise ConfigError(f"{source}: 'base_motion.harmonics' must list at least one harmonic for kind combined")
     if bm.kind in ("roll", "pitch", "yaw") and bm.amplitude > 0 and bm.frequency <= 0:
         raise ConfigError(f"{source}: 'base_motion.frequency' must be > 0 rad/s for a moving base")
+    check_rig(cfg, source)
