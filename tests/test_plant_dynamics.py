@@ -16,13 +16,14 @@ from scipy.signal import cont2discrete, tf2ss
 from amb_dynamics.config import load_config
 from amb_dynamics.floquet import sampled_floquet
 from amb_dynamics.motion import BaseMotion
-from amb_dynamics.plant_dynamics import PlantDynamics
+from amb_dynamics.plant_dynamics import PlantDynamics, structural_damping
 from amb_dynamics.sampled import SampledLoop
 from amb_dynamics.structure import build_structure
 from amb_dynamics.system import closed_loop
 
 WA, WS, BETA = 2 * np.pi * 2000.0, 2 * np.pi * 5000.0, 6e-5
-DYN = PlantDynamics(WA, WS, BETA)
+RAYLEIGH = ("rayleigh", 0.0, BETA, 0.0)
+DYN = PlantDynamics(WA, WS, 1, RAYLEIGH)
 
 
 def matched_error(a, b):
@@ -50,19 +51,21 @@ def open_plant(model, beta):
     return Ap, Bp, Cp
 
 
-@pytest.mark.parametrize("wa,ws", [(WA, WS), (WA, None), (None, WS)])
-def test_continuous_loop_matches_transfer_function_chain(wa, ws):
+@pytest.mark.parametrize("wa,ws,order", [(WA, WS, 1), (WA, None, 1), (None, WS, 1), (WA, WS, 2)])
+def test_continuous_loop_matches_transfer_function_chain(wa, ws, order):
     cfg, model = rotor()
     g = model.gains
     num, den = np.array([g.kd, g.kp]), np.array([1.0])
-    for w in (wa, ws):
-        if w is not None:
-            num, den = np.polymul(num, [w]), np.polymul(den, [1.0, w])
+    if wa is not None:
+        num, den = np.polymul(num, [wa]), np.polymul(den, [1.0, wa])
+    if ws is not None:
+        sens_den = [1.0, ws] if order == 1 else [1.0, np.sqrt(2) * ws, ws * ws]
+        num, den = np.polymul(num, [ws**order]), np.polymul(den, sens_den)
     Ac, Bc, Cc, Dc = tf2ss(num, den)
     Ap, Bp, Cp = open_plant(model, BETA)
     Ak, Bk, Ck, Dk = (sla.block_diag(*[X] * 4) for X in (Ac, Bc, Cc, Dc))
     A = np.block([[Ap - Bp @ Dk @ Cp, -Bp @ Ck], [Bk @ Cp, Ak]])
-    loop = closed_loop(model, cfg, PlantDynamics(wa, ws, BETA))
+    loop = closed_loop(model, cfg, PlantDynamics(wa, ws, order, RAYLEIGH))
     assert loop.N == A.shape[0]
     assert matched_error(np.linalg.eigvals(loop.A0), np.linalg.eigvals(A)) < 1e-8
 
@@ -77,22 +80,25 @@ def test_paper_loop_unchanged_when_off():
     assert np.array_equal(sa.step_map(np.zeros(3), np.zeros(3)), sb.step_map(np.zeros(3), np.zeros(3)))
 
 
-def test_shaft_damping_ratio_is_beta_w_over_2():
-    """Stiffness-proportional damping of the free-free shaft: zeta = beta w / 2 for each mode of (M, K_B)."""
+@pytest.mark.parametrize(
+    ("damping", "zeta"),
+    [
+        (("rayleigh", 3.0, BETA, 0.0), lambda w: 3.0 / (2 * w) + BETA * w / 2),
+        (("loss_factor", 0.0, 0.0, 0.02), lambda w: 0.01 + 0 * w),
+    ],
+)
+def test_shaft_damping_ratio_per_mode(damping, zeta):
+    """Free-free shaft with D_s: each flexural mode has the stated damping ratio (Rayleigh, or eta/2)."""
     cfg, model = rotor(cut="null")
     n = model.n
-    loop = closed_loop(model, cfg, PlantDynamics(None, None, BETA))
-    # open loop of the bare shaft: remove the bearings (ki kp + ks, ki kd) from A0 by rebuilding with zero gains
+    Ds = structural_damping(model, PlantDynamics(damping=damping))
     Minv = sla.inv(model.M)
-    A = np.zeros((2 * n, 2 * n))
-    A[:n, n:] = np.eye(n)
-    A[n:, :n] = -Minv @ model.mats["K_B"]
-    A[n:, n:] = -Minv @ (BETA * model.mats["K_B"])
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ model.mats["K_B"], -Minv @ Ds]])
     lam = np.linalg.eigvals(A)
     lam = lam[lam.imag > 1.0]
     w = np.abs(lam)
-    assert np.allclose(-lam.real / w, BETA * w / 2, rtol=1e-6)
-    assert loop.N == 2 * n  # damping alone adds no state
+    assert np.allclose(-lam.real / w, zeta(w), rtol=1e-6)
+    assert closed_loop(model, cfg, PlantDynamics(damping=damping)).N == 2 * n  # damping adds no state
 
 
 def test_sampled_loop_matches_cont2discrete_interconnection():

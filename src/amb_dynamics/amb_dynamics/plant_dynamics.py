@@ -5,15 +5,17 @@ Models (each off when its config value is null or 0, and then the loop is exactl
 * Amplifier as a current loop: i_a' = w_a (i_c - i_a), a first-order lag of bandwidth w_a (rad/s) between the
   commanded current i_c and the coil current i_a; the AMB force is ki i_a + ks y.  The voltage limit (slew rate
   |di_a/dt| <= V/L) and the current clamp are nonlinear and live in the rig stepper (:mod:`amb_dynamics.rig_plant`).
-* Sensor anti-alias filter: y_f' = w_s (y - y_f), first-order low-pass of corner w_s (rad/s) on each AMB
-  displacement y = Ba^T q; the controller sees y_f (sampled in the digital loop).
-* Structural damping of the shaft: D_s = beta K_B, stiffness-proportional (Rayleigh beta) viscous damping of the
-  free-free shaft stiffness, in the non-rotating frame (rotating internal damping, which destabilises above the
-  first critical speed, is not modelled).  A mode of frequency w gets the damping ratio beta w / 2: the 6-element
-  mesh's top modes (~3.5e4 rad/s) are damped strongly, the rotor's first bending modes hardly at all.
+* Sensor anti-alias filter on each AMB displacement y = Ba^T q, corner w_s (rad/s): first order
+  y_f' = w_s (y - y_f), or second-order Butterworth y_f'' = w_s^2 (y - y_f) - sqrt(2) w_s y_f'; the controller
+  sees y_f (sampled in the digital loop).
+* Structural damping of the shaft, viscous, in the non-rotating frame (rotating internal damping, whose
+  circulatory term destabilises above the first critical speed, is not modelled): Rayleigh D_s = alpha M + beta K_B
+  (K_B the free-free shaft stiffness; a flexural mode of frequency w gets the damping ratio alpha/(2w) + beta w/2,
+  so stiffness-proportional damping damps the 6-element mesh's top modes (~3.5e4 rad/s) strongly and the first
+  bending modes little), or a loss factor eta (damping ratio eta/2 in every flexural mode of (M, K_B)).
 
 The extra states are appended to the plant state: x_p = [q; q'; i_a (4, with the amplifier); y_f (4, with the
-filter)], labels ``amp_<channel>`` and ``sens_<channel>``.
+filter); y_f' (4, second-order filter)], labels ``amp_<channel>``, ``sens_<channel>``, ``dsens_<channel>``.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg as sla
 
 from .config import RotorConfig
 from .structure import StructuralModel
@@ -33,38 +36,55 @@ class PlantDynamics:
 
     amplifier_rad_s : current-loop bandwidth w_a (rad/s)
     sensor_rad_s : anti-alias corner w_s (rad/s)
-    beta_s : stiffness-proportional shaft damping beta (s)
+    sensor_order : 1 (first order) or 2 (Butterworth, zeta = 1/sqrt 2)
+    damping : (model, alpha 1/s, beta s, loss factor) of the shaft, model "none" | "rayleigh" | "loss_factor"
     """
 
     amplifier_rad_s: float | None = None
     sensor_rad_s: float | None = None
-    beta_s: float = 0.0
+    sensor_order: int = 1
+    damping: tuple[str, float, float, float] = ("none", 0.0, 0.0, 0.0)
+
+    @property
+    def damped(self) -> bool:
+        model, alpha, beta, eta = self.damping
+        return (model == "rayleigh" and (alpha != 0.0 or beta != 0.0)) or (model == "loss_factor" and eta != 0.0)
 
     @property
     def augmented(self) -> bool:
         """True if the plant has states beyond [q; q'] or damping beyond the paper's."""
-        return self.amplifier_rad_s is not None or self.sensor_rad_s is not None or self.beta_s != 0.0
+        return self.amplifier_rad_s is not None or self.sensor_rad_s is not None or self.damped
 
     @classmethod
     def from_config(cls, cfg: RotorConfig) -> PlantDynamics:
-        amp = getattr(cfg, "amplifier", None)
-        sens = getattr(cfg, "sensor", None)
-        shaft = cfg.shaft
-        amp_hz = getattr(amp, "bandwidth_hz", None) if amp is not None and getattr(amp, "enabled", True) else None
-        sens_hz = getattr(sens, "antialias_hz", None) if sens is not None and getattr(sens, "enabled", True) else None
-        beta = float(getattr(shaft, "damping_beta", 0.0) or 0.0)
+        amp_hz, sens = cfg.actuator.bandwidth_hz, cfg.sensor
+        sd = cfg.structural_damping
         return cls(
-            None if not amp_hz else 2 * math.pi * amp_hz,
-            None if not sens_hz else 2 * math.pi * sens_hz,
-            beta,
+            None if amp_hz is None else 2 * math.pi * amp_hz,
+            None if sens.filter_hz is None else 2 * math.pi * sens.filter_hz,
+            sens.filter_order,
+            (sd.model, sd.alpha, sd.beta, sd.loss_factor),
         )
 
 
 def structural_damping(model: StructuralModel, dyn: PlantDynamics) -> np.ndarray | None:
-    """D_s = beta K_B in the model's coordinates (N s/m), or None when off."""
-    if dyn.beta_s == 0.0:
+    """D_s of the shaft in the model's coordinates (N s/m), or None when off.
+
+    rayleigh: alpha M + beta K_B (K_B: the free-free shaft, no bearing); loss_factor: M Phi diag(eta w_i) Phi^T M
+    over the mass-normalised modes Phi of (M, K_B), i.e. damping ratio eta/2 in every flexural mode, none in the
+    rigid-body modes (w_i below 1e-6 of the highest).
+    """
+    if not dyn.damped:
         return None
-    return dyn.beta_s * model.mats["K_B"]
+    kind, alpha, beta, eta = dyn.damping
+    M, K = model.mats["M"], model.mats["K_B"]
+    if kind == "rayleigh":
+        return alpha * M + beta * K
+    w2, Phi = sla.eigh(K, M)
+    w = np.sqrt(np.clip(w2, 0.0, None))
+    w[w < 1e-6 * w.max()] = 0.0
+    MP = M @ Phi
+    return (MP * (eta * w)) @ MP.T
 
 
 @dataclass(frozen=True)
@@ -83,15 +103,26 @@ class StateLayout:
         if dyn.amplifier_rad_s is not None:
             amp, i = slice(i, i + na), i + na
         if dyn.sensor_rad_s is not None:
-            sens, i = slice(i, i + na), i + na
+            m = na * dyn.sensor_order
+            sens, i = slice(i, i + m), i + m
         return cls(n, amp, sens, i)
 
+    @property
+    def measured(self) -> slice | None:
+        """The filtered displacements y_f (the first block of the sensor states)."""
+        return None if self.sens is None else slice(self.sens.start, self.sens.start + 4)
+
     def labels(self, dof_names: tuple[str, ...], channels: tuple[str, ...]) -> tuple[str, ...]:
+        sens = ()
+        if self.sens is not None:
+            sens = tuple(f"sens_{c}" for c in channels)
+            if self.sens.stop - self.sens.start > len(channels):
+                sens += tuple(f"dsens_{c}" for c in channels)
         return (
             *dof_names,
             *(f"d_{d}" for d in dof_names),
             *((f"amp_{c}" for c in channels) if self.amp else ()),
-            *((f"sens_{c}" for c in channels) if self.sens else ()),
+            *sens,
         )
 
 
@@ -120,11 +151,19 @@ def open_loop_plant(model: StructuralModel, dyn: PlantDynamics, Minv: np.ndarray
     Cy = np.zeros((Ba.shape[1], N))
     Cy[:, :n] = Ba.T
     if lay.sens is not None:
-        ws = dyn.sensor_rad_s
-        Ap[lay.sens, :n] = ws * Ba.T
-        Ap[lay.sens, lay.sens] = -ws * np.eye(Ba.shape[1])
+        ws, na, f = dyn.sensor_rad_s, Ba.shape[1], lay.measured
+        I = np.eye(na)
+        if dyn.sensor_order == 1:  # y_f' = ws (y - y_f)
+            Ap[f, :n] = ws * Ba.T
+            Ap[f, f] = -ws * I
+        else:  # y_f'' = ws^2 (y - y_f) - sqrt(2) ws y_f'  (Butterworth)
+            d = slice(f.stop, f.stop + na)
+            Ap[f, d] = I
+            Ap[d, :n] = ws * ws * Ba.T
+            Ap[d, f] = -ws * ws * I
+            Ap[d, d] = -math.sqrt(2.0) * ws * I
         Cm = np.zeros_like(Cy)
-        Cm[:, lay.sens] = np.eye(Ba.shape[1])
+        Cm[:, f] = I
     else:
         Cm = Cy
     return Ap, Bp, Cm, Cy, lay

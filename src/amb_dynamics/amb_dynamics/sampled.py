@@ -111,7 +111,7 @@ class PlantStepper:
     def output(self, xp: np.ndarray) -> np.ndarray:
         """What the sensors report (m), channels of model.channels: y = Ba^T q, or the filtered y_f."""
         if self.layout.sens is not None:
-            return xp[self.layout.sens].copy()
+            return xp[self.layout.measured].copy()
         return self.model.Ba.T @ xp[: self.n]
 
     def displacement(self, xp: np.ndarray) -> np.ndarray:
