@@ -47,6 +47,32 @@ class RigController:
         return u
 
 
+def levitated_state(plant: RigPlant, cfg: RotorConfig) -> np.ndarray:
+    """Plant state at rest on the controller under gravity (base level, no spin effects): zero without gravity.
+
+    Steady state of the digital PD (derivative zero, i = offset - kp y_m) with the bias-current offset:
+    (K_B + (ki kp + ks) Ba Ba^T) q = f_g + ki Ba offset; the amplifier state = i, the filter state = y.  The run
+    then starts levitated rather than dropping the overhung disk onto its shaft's elastic sag at t = 0.
+    """
+    model, lin = plant.model, plant.lin
+    x = np.zeros(plant.N)
+    if not plant.g:
+        return x
+    g = model.gains
+    off = np.array(cfg.controller.bias_current_offset or (0.0,) * 4, dtype=float)
+    K = model.mats["K_B"] + (g.ki * g.kp + g.ks) * model.Ba @ model.Ba.T
+    f = plant.S[:, -2:] @ np.array([-plant.g, 0.0]) + g.ki * model.Ba @ off
+    q = np.linalg.solve(K, f)
+    n = model.n
+    x[:n] = q
+    y = model.Ba.T @ q
+    if lin.layout.amp is not None:
+        x[lin.layout.amp] = off - g.kp * y
+    if lin.layout.sens is not None:
+        x[lin.layout.measured] = y
+    return x
+
+
 @dataclass
 class RigRun:
     """Offline run on the rig plant (k = 0..steps)."""
@@ -71,7 +97,10 @@ def simulate_rig(
     fail_at_s: float | None = None,
     current_limit: float | None = None,
 ) -> RigRun:
-    """The lockstep loop offline with every configured effect (``RigPlant`` and ``RigController``)."""
+    """The lockstep loop offline with every configured effect (``RigPlant`` and ``RigController``).
+
+    Starts levitated (``levitated_state``, as the plant node does) plus ``x0`` ([q; q'] or the full plant state).
+    """
     Ts = Ts if Ts is not None else 1.0 / cfg.controller.rate_hz
     limit = cfg.controller.current_limit if current_limit is None else current_limit
     plant = RigPlant(model, cfg, Ts, current_limit=limit)
@@ -81,8 +110,9 @@ def simulate_rig(
     Om, dOm = motion.angular_velocity(t)
     Om, dOm = np.ascontiguousarray(Om.T), np.ascontiguousarray(dOm.T)
     x = np.zeros((steps + 1, N))
+    x[0] = levitated_state(plant, cfg)
     if x0 is not None:
-        x[0, : len(x0)] = x0
+        x[0, : len(x0)] += x0
     y = np.empty((steps + 1, 4))
     disp = np.empty((steps + 1, 4))
     cur = np.empty((steps, 4))

@@ -106,6 +106,7 @@ class RigPlant:
             self.unb or self.g or self.noise_f.any() or self.forces.active or self.slew or self.runout or self.noise_y
         )
         self._cache: dict[bytes, tuple] = {}
+        self._last: tuple = (None, None)
         self._noise_block = -1
         self._noise = np.zeros((BLOCK, 4 + self.noise_f.size))
         self.reset()
@@ -137,6 +138,8 @@ class RigPlant:
         hit = self._cache.get(key)
         if hit is not None:
             return hit
+        if self._last[0] == key:  # prepared ahead of the step while the cache is full
+            return self._last[1]
         lin, N = self.lin, self.N
         Om, dOm = np.asarray(Omega, float), np.asarray(dOmega, float)
         c = coefficients_from_rates(Om, dOm, spin)
@@ -155,6 +158,7 @@ class RigPlant:
         out = (P[:N, :N], P[:N, N : N + 4], P[:N, N + 4], P[:N, N + 5 : o], P[:N, o : o + 2])
         if len(self._cache) < CACHE_LIMIT:
             self._cache[key] = out
+        self._last = (key, out)
         return out
 
     def _unbalance_columns(self, spin: float) -> np.ndarray:
@@ -168,6 +172,10 @@ class RigPlant:
         return cols
 
     # -- one step -----------------------------------------------------------------------------------------
+    def prepare(self, Omega: np.ndarray, dOmega: np.ndarray) -> None:
+        """Compute (cache) the matrices of the coming step ahead of it (the plant node, while it waits)."""
+        self.matrices(Omega, dOmega, self.spin_speed())
+
     def applied_current(self, x: np.ndarray, i_cmd: np.ndarray) -> np.ndarray:
         """Command after the current clamp and the voltage (slew) limit (i_cmd itself when neither acts)."""
         i = i_cmd
