@@ -30,7 +30,8 @@ def repo() -> Path:
 
 @pytest.fixture(scope="session")
 def seed_config_path() -> Path:
-    return REPO / "config" / "seed_rotor.yaml"
+    """The paper's idealised rotor: every test that quotes the paper's numbers runs on it."""
+    return REPO / "config" / "seed_paper.yaml"
 
 
 @pytest.fixture(scope="session")

@@ -50,8 +50,8 @@ def p0_stiffness(k: float = P0["k"], kt: float = P0["kt"], kc: float = 0.0) -> n
 
 @functools.cache
 def load(*overrides: str) -> config.RotorConfig:
-    """The seed rotor with overrides (cached: configs are frozen)."""
-    return config.load_config(overrides=list(overrides))
+    """The paper rotor (config/seed_paper.yaml) with overrides (cached: configs are frozen)."""
+    return config.load_config(config.paper_config_path(), list(overrides))
 
 
 def rigid_loop(

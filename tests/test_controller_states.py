@@ -11,7 +11,7 @@ import scipy.linalg as sla
 from scipy.optimize import linear_sum_assignment
 from scipy.signal import tf2ss
 
-from amb_dynamics.config import load_config
+from amb_dynamics.config import load_config, paper_config_path
 from amb_dynamics.structure import build_structure
 from amb_dynamics.system import closed_loop
 
@@ -43,7 +43,8 @@ def matched_error(a, b):
 @pytest.mark.parametrize(("kI", "filter_hz"), [(0.0, 800.0), (2.0e5, 800.0), (2.0e5, 3000.0)])
 def test_pid_states_match_transfer_function_interconnection(kI, filter_hz):
     cfg = load_config(
-        overrides=[f"controller.integral_gain={kI}", f"controller.derivative_filter_hz={filter_hz}", "spin_speed_rpm=0"]
+        paper_config_path(),
+        [f"controller.integral_gain={kI}", f"controller.derivative_filter_hz={filter_hz}", "spin_speed_rpm=0"],
     )
     model = build_structure(cfg)
     loop = closed_loop(model, cfg)
@@ -58,12 +59,12 @@ def test_pid_states_match_transfer_function_interconnection(kI, filter_hz):
 
 
 def test_filtered_derivative_tends_to_ideal():
-    ideal_cfg = load_config()
+    ideal_cfg = load_config(paper_config_path())
     model = build_structure(ideal_cfg)
     ideal = np.sort_complex(np.linalg.eigvals(closed_loop(model, ideal_cfg).A0))
     errs = []
     for hz in (1e5, 1e6):
-        cfg = load_config(overrides=[f"controller.derivative_filter_hz={hz}"])
+        cfg = load_config(paper_config_path(), [f"controller.derivative_filter_hz={hz}"])
         lam = np.linalg.eigvals(closed_loop(build_structure(cfg), cfg).A0)
         lam = lam[np.argsort(np.abs(lam))][: ideal.size]  # drop the 4 fast filter poles near -2 pi hz
         errs.append(matched_error(ideal, lam))

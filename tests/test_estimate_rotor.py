@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from amb_dynamics.config import load_config
+from amb_dynamics.config import load_config, paper_config_path
 from amb_dynamics.estimate import COLLECTING, INSUFFICIENT, UNSTABLE
 from amb_dynamics.estimate_sim import SnapshotSimulator, add_measurement_noise
 from amb_dynamics.estimate_stream import EstimatorConfig, estimate_series
@@ -39,7 +39,7 @@ def rotors():
     """base_forcing -> (model, loop)."""
     out = {}
     for forced in (False, True):
-        cfg = load_config(overrides=[f"base_forcing={str(forced).lower()}"])
+        cfg = load_config(paper_config_path(), [f"base_forcing={str(forced).lower()}"])
         model = build_structure(cfg)
         out[forced] = (model, SampledLoop(model, cfg))
     return out

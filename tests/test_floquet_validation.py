@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from amb_dynamics.chart import stability_chart
-from amb_dynamics.config import load_config
+from amb_dynamics.config import load_config, paper_config_path
 from amb_dynamics.floquet import floquet, sampled_floquet
 from amb_dynamics.motion import BaseMotion
 from amb_dynamics.newmark import disk_initial_state, fit_growth_rate, newmark
@@ -15,7 +15,7 @@ from amb_dynamics.validation import rho_ivp
 
 
 def seed_system(*overrides):
-    cfg = load_config(overrides=list(overrides))
+    cfg = load_config(paper_config_path(), list(overrides))
     model = build_structure(cfg)
     return cfg, model, closed_loop(model, cfg)
 
@@ -90,7 +90,7 @@ def test_sampled_multipliers_converge_to_continuous():
 
 
 def test_default_rate_stable_at_rest_with_margin():
-    """The default digital loop (config/seed_rotor.yaml) is stable at rest; the margins printed in the README."""
+    """The paper's digital loop (config/seed_paper.yaml) is stable at rest; the margins printed in the README."""
     cfg, model, _ = seed_system()
     sl = SampledLoop(model, cfg, forcing=False)
     res = sampled_floquet(sl, BaseMotion(), None)

@@ -12,10 +12,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from amb_dynamics.config import load_config
-from amb_dynamics.modes import modes_at_speed
+from amb_dynamics import cli
+from amb_dynamics.config import load_config, paper_config_path
 from amb_dynamics.structure import build_structure
-from amb_dynamics.system import closed_loop
 
 SPEEDS = (0.0, 1000.0)
 
@@ -36,23 +35,25 @@ def ross_eigenvalues(repo, tmp_path_factory):
 
 
 @pytest.mark.parametrize("speed", SPEEDS)
-def test_modes_match_ross(ross_eigenvalues, speed):
+def test_modes_match_ross(ross_eigenvalues, capsys, speed):
+    """`amb-dynamics modes --config config/seed_paper.yaml` as a user runs it, without any extra flag."""
     ross, _ = ross_eigenvalues
-    cfg = load_config(overrides=["modal_cutoff=null"])
-    model = build_structure(cfg)
-    res = modes_at_speed(model, closed_loop(model, cfg), speed)
+    assert cli.main(["modes", "--config", str(paper_config_path()), "--speed-rpm", str(speed), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)["speeds"][0]
+    n_fe = build_structure(load_config(paper_config_path(), ["modal_cutoff=null"])).n
     ref = ross[speed]
     upper = ref[ref.imag > 0]
-    assert 2 * len(res.modes) + len(res.real_roots) == 2 * model.n  # every eigenvalue is accounted for
-    for mode in res.modes:
-        j = np.argmin(np.abs(upper - mode.eigenvalue))
-        assert abs(upper[j].imag - mode.frequency_rad_s) <= 1e-3 * mode.frequency_rad_s, (mode, upper[j])
-        assert abs(upper[j] - mode.eigenvalue) <= 1e-3 * abs(mode.eigenvalue)
-    for root in res.real_roots:  # overdamped AMB roots (about -1208 and -4582 1/s at rest)
+    assert 2 * len(res["modes"]) + len(res["real_roots_1_s"]) == 2 * n_fe  # every eigenvalue is accounted for
+    for mode in res["modes"]:
+        lam = complex(*mode["eigenvalue"])
+        j = np.argmin(np.abs(upper - lam))
+        assert abs(upper[j].imag - mode["frequency_rad_s"]) <= 1e-3 * mode["frequency_rad_s"], (mode, upper[j])
+        assert abs(upper[j] - lam) <= 1e-3 * abs(lam)
+    for root in res["real_roots_1_s"]:  # overdamped AMB roots (about -1208 and -4582 1/s at rest)
         assert np.min(np.abs(ref - root)) <= 1e-3 * abs(root)
 
 
 def test_disk_properties_match_ross(ross_eigenvalues):
     _, data = ross_eigenvalues
-    disk = build_structure(load_config()).fe.disks[0]
+    disk = build_structure(load_config(paper_config_path())).fe.disks[0]
     np.testing.assert_allclose([disk.m, disk.Ip, disk.Id], [data["disk"][k] for k in ("m", "Ip", "Id")], rtol=1e-12)

@@ -5,7 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from amb_dynamics.config import load_config
+from amb_dynamics.config import load_config, paper_config_path
 from amb_dynamics.fe import assemble, element_matrices, section_of
 
 
@@ -31,7 +31,7 @@ def test_timoshenko_cantilever_has_the_shear_deflection(elements):
         "bearings.nodes=[1, 2]",
         "shaft.diameter=0.2",
     ]  # stubby: shear matters
-    cfg = load_config(overrides=overrides)
+    cfg = load_config(paper_config_path(), overrides)
     sec = section_of(cfg)
     L, P = cfg.shaft.length, 1000.0
     v, tz = cantilever_tip(cfg, P)
@@ -43,7 +43,7 @@ def test_timoshenko_cantilever_has_the_shear_deflection(elements):
 
 def test_timoshenko_element_tends_to_euler_bernoulli():
     """phi_s -> 0 (shear stiffness -> infinity at fixed EI): every element matrix tends to the EB one, O(phi_s)."""
-    eb = section_of(load_config())
+    eb = section_of(load_config(paper_config_path()))
     errors = []
     for kGA in (1e12, 1e14):
         timo = element_matrices(replace(eb, kGA=kGA))
@@ -54,7 +54,7 @@ def test_timoshenko_element_tends_to_euler_bernoulli():
 
 
 def test_timoshenko_kappa_of_a_solid_circle():
-    cfg = load_config(overrides=["shaft.model=timoshenko"])
+    cfg = load_config(paper_config_path(), ["shaft.model=timoshenko"])
     sec = section_of(cfg)
     nu = cfg.shaft.youngs_modulus / (2 * cfg.shaft.shear_modulus) - 1
     kappa = 6 * (1 + nu) / (7 + 6 * nu)

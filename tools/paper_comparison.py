@@ -12,7 +12,7 @@ import numpy as np
 
 from amb_dynamics import plots
 from amb_dynamics.chart import stability_chart
-from amb_dynamics.config import load_config
+from amb_dynamics.config import load_config, paper_config_path
 from amb_dynamics.floquet import floquet
 from amb_dynamics.motion import BaseMotion
 from amb_dynamics.structure import build_structure
@@ -31,7 +31,7 @@ POINTS = {
 def main() -> dict:
     out: dict = {"charts": {}, "points": {}}
     for form in ("derived", "seed"):
-        cfg = load_config(overrides=[f"formulation={form}"])
+        cfg = load_config(paper_config_path(), [f"formulation={form}", "modal_cutoff=null"])  # continuous: full FE
         model = build_structure(cfg)
         loop = closed_loop(model, cfg)
         for kind in ("pitch", "roll"):

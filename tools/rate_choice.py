@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from amb_dynamics.config import load_config
+from amb_dynamics.config import load_config, paper_config_path
 from amb_dynamics.floquet import sampled_floquet
 from amb_dynamics.motion import BaseMotion
 from amb_dynamics.sampled import SampledLoop
@@ -40,7 +40,7 @@ def main():
     print("max|mu| per sample at rest (digital-mode max in brackets); '*' = unstable")
     print("cutoff (rad/s)  n   " + "".join(f"{r:>18d}" for r in RATES) + "   min stable rate")
     for cut in CUTOFFS:
-        cfg = load_config(overrides=[f"modal_cutoff={'null' if cut is None else cut}"])
+        cfg = load_config(paper_config_path(), [f"modal_cutoff={'null' if cut is None else cut}"])
         model = build_structure(cfg)
         cells = []
         for r in RATES:
@@ -52,7 +52,7 @@ def main():
             if mr
             else "   none below 50 kHz"
         )
-    cfg = load_config()
+    cfg = load_config(paper_config_path())
     model = build_structure(cfg)
     rho, fast, slow = at_rest(model, cfg, cfg.controller.rate_hz)
     print(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from dataclasses import dataclass
@@ -31,17 +32,19 @@ class Setup:
     loop: ClosedLoop
 
 
-def setup(args) -> Setup:
+def setup(args, digital: bool = False) -> Setup:
+    """Config, structure and continuous loop of a command.  The continuous analyses run on the full FE model;
+    ``modal_cutoff`` serves the digital loop only (``digital=True``: the sampled-data analyses)."""
     overrides = list(args.overrides)
     if getattr(args, "formulation", None):
         overrides.append(f"formulation={args.formulation}")
     cfg = load_config(args.config, overrides)
-    model = build_structure(cfg)
+    model = build_structure(cfg if digital else dataclasses.replace(cfg, modal_cutoff=None))
     return Setup(cfg, model, closed_loop(model, cfg))
 
 
 def describe(cfg: RotorConfig, model: StructuralModel) -> str:
-    red = f", modal cutoff {cfg.modal_cutoff:g} rad/s ({model.n} modes)" if cfg.modal_cutoff else ""
+    red = f", modal cutoff {cfg.modal_cutoff:g} rad/s ({model.n} modes)" if model.basis is not None else ", full FE"
     return f"{Path(cfg.source).name}: {cfg.shaft.elements} elements, {cfg.formulation}{red}"
 
 
@@ -110,7 +113,7 @@ def run_campbell(args):
 
 
 def run_floquet(args):
-    s = setup(args)
+    s = setup(args, digital=args.controller == "sampled")
     motion = motion_of(args, s.cfg)
     ps = periodic_system(s.loop, motion, s.cfg.spin_rad_s)
     if motion.is_static:

@@ -1,4 +1,4 @@
-"""``amb-dynamics``: modes | campbell | floquet | chart | simulate.  Data to stdout (``--json``), logs to stderr."""
+"""``amb-dynamics``: modes | campbell | floquet | chart | simulate | unbalance.  Data to stdout (``--json``)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import analysis
+from . import analysis, unbalance_report
 from .errors import AmbError
 
 
@@ -114,14 +114,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, default=20.0, help="s")
     p.add_argument("--steps-per-period", type=int, default=200)
     p.add_argument("--out", type=Path, default=Path("out/response.png"))
+    unbalance_report.add_parser(sub, _common)
     return ap
+
+
+RUNNERS = {"unbalance": unbalance_report.run_unbalance}  # verbs outside analysis.py
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     # the chart writes its own JSON file; --json there also prints the summary
     try:
-        result, text = getattr(analysis, f"run_{args.verb}")(args)
+        result, text = RUNNERS.get(args.verb, getattr(analysis, f"run_{args.verb}", None))(args)
     except AmbError as exc:
         print(f"amb-dynamics {args.verb}: error: {exc}", file=sys.stderr)
         return 2

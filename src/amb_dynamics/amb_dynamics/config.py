@@ -32,6 +32,7 @@ from .config_rig import (
 from .errors import ConfigError
 
 SEED_CONFIG_NAME = "seed_rotor.yaml"
+PAPER_CONFIG_NAME = "seed_paper.yaml"  # the paper's idealised model (every paper comparison)
 _FLOAT_RE = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 
@@ -142,8 +143,13 @@ class RotorConfig:
 
 
 def seed_config_path() -> Path:
-    """Path of the packaged seed rotor (a link to config/seed_rotor.yaml in the repository)."""
+    """Path of the packaged default, the real rig (a link to config/seed_rotor.yaml in the repository)."""
     return Path(str(resources.files("amb_dynamics") / "data" / SEED_CONFIG_NAME))
+
+
+def paper_config_path() -> Path:
+    """Path of the packaged paper rotor (a link to config/seed_paper.yaml): the idealised model of the paper."""
+    return Path(str(resources.files("amb_dynamics") / "data" / PAPER_CONFIG_NAME))
 
 
 def load_config(path: str | Path | None = None, overrides: list[str] | tuple[str, ...] = ()) -> RotorConfig:

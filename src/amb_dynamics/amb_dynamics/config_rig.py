@@ -82,7 +82,7 @@ class TouchdownConfig:
     )
     clearance: float | None = _f("m", 0.0, open_lo=True, default=None, doc="radial clearance, < bearings.air_gap")
     stiffness: float | None = _f("N/m", 0.0, open_lo=True, default=None, doc="radial contact stiffness")
-    damping: float = _f("N s/m", 0.0, default=0.0, doc="radial contact damping (only while approaching)")
+    damping: float = _f("N s/m", 0.0, default=0.0, doc="radial contact damping (the force never pulls)")
     friction: float = _f("", 0.0, 2.0, default=0.0, doc="Coulomb coefficient of the tangential force")
 
 

@@ -58,12 +58,10 @@ class PlantDynamics:
     @classmethod
     def from_config(cls, cfg: RotorConfig) -> PlantDynamics:
         amp_hz, sens = cfg.actuator.bandwidth_hz, cfg.sensor
-        sd = cfg.structural_damping
-        return cls(
+        return cls(  # the shaft damping of the config is already in the model's D_s (damping.py)
             None if amp_hz is None else 2 * math.pi * amp_hz,
             None if sens.filter_hz is None else 2 * math.pi * sens.filter_hz,
             sens.filter_order,
-            (sd.model, sd.alpha, sd.beta, sd.loss_factor),
         )
 
 
@@ -74,8 +72,9 @@ def structural_damping(model: StructuralModel, dyn: PlantDynamics) -> np.ndarray
     over the mass-normalised modes Phi of (M, K_B), i.e. damping ratio eta/2 in every flexural mode, none in the
     rigid-body modes (w_i below 1e-6 of the highest).
     """
-    if not dyn.damped:
-        return None
+    if not dyn.damped:  # from the config: D_s is in the model (damping.py, projected with the modal basis)
+        Ds = model.mats.get("D_s")
+        return Ds if Ds is not None and Ds.any() else None
     kind, alpha, beta, eta = dyn.damping
     M, K = model.mats["M"], model.mats["K_B"]
     if kind == "rayleigh":

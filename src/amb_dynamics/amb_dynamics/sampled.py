@@ -60,6 +60,8 @@ class PlantStepper:
             self.Ap0 = np.zeros((2 * n, 2 * n))
             self.Ap0[:n, n:] = np.eye(n)
             self.Ap0[n:, :n] = -Minv @ Kp
+            if "D_s" in model.mats:  # structural damping of the shaft (damping.py)
+                self.Ap0[n:, n:] = -Minv @ model.mats["D_s"]
             self.Bp = np.zeros((2 * n, 4))
             self.Bp[n:] = Minv @ model.Ba * model.gains.ki
             self.layout = StateLayout.of(n, self.dynamics)

@@ -12,6 +12,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .config import RotorConfig
+from .damping import structural_damping_matrix
 from .errors import InputError
 from .fe import DiskProps, FEModel, Section, assemble, disk_forcing, disk_matrices, dof_index
 
@@ -109,8 +110,10 @@ def build_structure(cfg: RotorConfig, fe: FEModel | None = None) -> StructuralMo
     fe = fe if fe is not None else assemble(cfg)
     gains = AMBGains.from_config(cfg)
     Ba = selection_matrix(fe.n, cfg.bearings.nodes)
+    mats = dict(fe.mats)
+    mats["D_s"] = structural_damping_matrix(fe.mats["M"], fe.mats["K_B"], cfg.structural_damping)
     model = StructuralModel(
-        dict(fe.mats),
+        mats,
         Ba,
         fe.forcing.copy(),
         gains,

@@ -153,7 +153,7 @@ def _paper_closed_loop(model: StructuralModel, Minv: np.ndarray, ne: int, nf: in
     Ky = g.ki * g.kp + g.ks + (g.ki * g.kd * g.omega_f if use_filt else 0.0)
     Dy = 0.0 if use_filt else g.ki * g.kd
     K0 = model.mats["K_B"] + Ky * Ba @ Ba.T
-    D0 = Dy * Ba @ Ba.T
+    D0 = Dy * Ba @ Ba.T + model.mats.get("D_s", 0.0)  # structural damping of the shaft (damping.py)
     A0 = np.zeros((N, N))
     A0[:n, n : 2 * n] = np.eye(n)
     A0[n : 2 * n, :n] = -Minv @ K0
