@@ -11,6 +11,7 @@
 """
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,7 +22,7 @@ from amb_dynamics.rig_loop import simulate_rig
 from amb_dynamics.sampled import SampledLoop
 from amb_dynamics.structure import build_structure
 
-PAPER = "config/seed_paper.yaml"
+PAPER = Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml"
 
 
 def paper(*overrides):
