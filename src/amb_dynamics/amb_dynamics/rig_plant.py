@@ -42,6 +42,7 @@ from .structure import StructuralModel
 from .system import coefficients_from_rates, forcing_from_rates
 
 BLOCK = 256  # steps of noise per Philox draw
+SPIN_GRID = 2.0 * math.pi / 30.0  # rad/s (2 rpm): during a ramp the step matrices are interpolated between these
 RPM = math.pi / 30.0
 
 
@@ -194,6 +195,20 @@ class RigPlant:
         self._last = (key, out)
         return out
 
+    def step_matrices(self, Omega: np.ndarray, dOmega: np.ndarray, spin: float, h: float | None = None):
+        """The matrices of a step at ``spin``: exact at a constant speed; during a ramp linear interpolation between
+        the cached matrices of the SPIN_GRID speeds around it (error O(SPIN_GRID^2); the speed-dependent terms
+        follow the speed at every step without an exponential per step)."""
+        if self.spin.rate == 0.0:
+            return self.matrices(Omega, dOmega, spin, h)
+        j = math.floor(spin / SPIN_GRID)
+        a = spin / SPIN_GRID - j
+        lo = self.matrices(Omega, dOmega, j * SPIN_GRID, h)
+        if a == 0.0:
+            return lo
+        hi = self.matrices(Omega, dOmega, (j + 1) * SPIN_GRID, h)
+        return tuple(u + a * (v - u) for u, v in zip(lo, hi, strict=True))
+
     def _unbalance_columns(self, spin: float) -> np.ndarray:
         """Plant input of the unbalance per unit (cos phi, sin phi), centrifugal part U Phi^2 (N x 2)."""
         cols = np.zeros((self.N, 2))
@@ -207,7 +222,7 @@ class RigPlant:
     # -- one step -----------------------------------------------------------------------------------------
     def prepare(self, Omega: np.ndarray, dOmega: np.ndarray) -> None:
         """Compute (cache) the matrices of the coming step ahead of it (the plant node, while it waits)."""
-        self.matrices(Omega, dOmega, self.spin_speed())
+        self.step_matrices(Omega, dOmega, self.spin_speed())
 
     def applied_current(self, x: np.ndarray, i_cmd: np.ndarray) -> np.ndarray:
         """Command after the current clamp and the voltage (slew) limit (i_cmd itself when neither acts)."""
@@ -231,7 +246,7 @@ class RigPlant:
         if i is not i_cmd:
             self.saturated += 1
         if self.linear_only:
-            E, G, g, _, _ = self.matrices(Omega, dOmega, spin)
+            E, G, g, _, _ = self.step_matrices(Omega, dOmega, spin)
             x_next = E @ x + G @ i + g
         else:
             x_next = self._step_effects(x, i, Omega, dOmega, spin)
@@ -256,7 +271,7 @@ class RigPlant:
         cs = np.array([math.cos(self.phi), math.sin(self.phi)])
         m = self.forces.substeps if self.forces.near(x, self.Ts) else 1
         h = self.Ts / m
-        E, G, g, GF, Gu = self.matrices(Omega, dOmega, spin, h)
+        E, G, g, GF, Gu = self.step_matrices(Omega, dOmega, spin, h)
         rot = np.array([[math.cos(spin * h), -math.sin(spin * h)], [math.sin(spin * h), math.cos(spin * h)]])
         const = G @ i + g + GF @ held
         GFn = GF[:, :-2]  # node-force columns (the last two are gravity)
