@@ -1,15 +1,12 @@
 """State-dependent node forces of the rig plant: nonlinear bearing law (its departure from the linearisation)
 and touchdown (backup) bearing contact, with the contact event log.
 
-Nonlinear law per AMB axis (differential driving about bias i0 and nominal gap g0, pole-angle factor folded into
-k = ki g0^2 / (4 i0)): f = k [(i0 + i)^2/(g0 - x)^2 - (i0 - i)^2/(g0 + x)^2], whose linearisation at (0, 0) is
-ki i + |ks| x exactly when g0 = i0 ki/|ks| (config check); optional saturation caps each magnet's pull.  The linear
-plant carries ki i - ks x, so the node force here is the difference f - (ki i - ks x), O(x^2, i^2, x i).
+Nonlinear law per AMB axis: ``magnet.BearingLaw`` (differential driving about i0, g0, pole-angle factor, optional
+saturation), whose linearisation at the centre is ki i - ks x; the linear plant carries that, so the node force
+here is the law's departure from it, odd in (x, i) and therefore third order.
 
-Touchdown at a node with radial displacement r = (y, z), e = |r|, penetration d = e - c > 0: normal force
-Fn = k_c d + c_c max(e', 0) (damping only while approaching) toward the centre, Coulomb friction
-mu Fn tanh(v_s / V_EPS) against the slip velocity v_s = t . r' + R Phi of the journal surface (R the shaft radius,
-t the tangent, Phi the spin): a spinning rotor in contact is pushed to whirl backward.  The friction torque on the
+Touchdown: ``touchdown.contact_forces`` (penalty normal force, damping, regularised Coulomb friction against the
+journal's slip velocity: a spinning rotor in contact is pushed to whirl backward).  The friction torque on the
 spin is not fed back (the drive holds the spin profile).
 """
 
@@ -21,40 +18,14 @@ import numpy as np
 
 from .config import RotorConfig
 from .fe import dof_index
+from .magnet import BearingLaw
 from .plant_dynamics import StateLayout
 from .structure import StructuralModel
+from .touchdown import contact_forces
 
-MU0 = 4e-7 * math.pi
-V_EPS = 1e-3  # m/s, friction regularisation
 NEAR = 0.8  # sub-step while a node is beyond NEAR x clearance (or would get there within a step)
 OMEGA_H = 0.2  # sub-step h: sqrt(k_c / m_node) h <= OMEGA_H
 MAX_SUBSTEPS = 64
-
-
-def nonlinear_bearing_force(x, i, ki, ks, i0, g0, f_sat=None):
-    """Force (N) of one AMB axis (differential pair) at displacement x (m) and control current i (A)."""
-    k = ki * g0 * g0 / (4.0 * i0)
-    gp = np.maximum(g0 - x, 1e-3 * g0)
-    gm = np.maximum(g0 + x, 1e-3 * g0)
-    fp = k * (i0 + i) ** 2 / gp**2
-    fm = k * (i0 - i) ** 2 / gm**2
-    if f_sat is not None:
-        fp, fm = np.minimum(fp, f_sat), np.minimum(fm, f_sat)
-    return fp - fm
-
-
-def contact_force(r, v, clearance, k, c, mu, radius, spin):
-    """Force (N, (y, z)) of a backup bearing on the rotor at node displacement r and velocity v; and d (m)."""
-    e = math.hypot(r[0], r[1])
-    d = e - clearance
-    if d <= 0.0:
-        return 0.0, 0.0, d
-    ny, nz = r[0] / e, r[1] / e
-    er = ny * v[0] + nz * v[1]
-    fn = k * d + (c * er if er > 0.0 else 0.0)
-    slip = -nz * v[0] + ny * v[1] + radius * spin
-    ft = -mu * fn * math.tanh(slip / V_EPS)
-    return -fn * ny - ft * nz, -fn * nz + ft * ny, d
 
 
 class ContactLog:
@@ -94,12 +65,10 @@ class RigForces:
         Psi = model.basis if model.basis is not None else np.eye(fe.n)
         rows = [dof_index(node, a) for node in self.nodes for a in (0, 1)]
         self.T = Psi[rows]  # (2 x nodes, n): node (y, z) from q
-        self.ki, self.ks, self.i0, self.g0 = b.current_stiffness, b.displacement_stiffness, b.bias_current, b.air_gap
-        self.f_sat = None
-        if b.saturation_flux_density is not None:
-            self.f_sat = math.cos(math.radians(b.pole_angle_deg)) * b.pole_area * b.saturation_flux_density**2 / MU0
         self.amb_idx = np.array([2 * self.nodes.index(nd) + a for nd in self.amb_nodes for a in (0, 1)])
         self.td_idx = [self.nodes.index(nd) for nd in self.td_nodes]
+        self.td_rows = np.array([2 * j + a for j in self.td_idx for a in (0, 1)], dtype=int)
+        self.law = BearingLaw.from_config(b) if self.nonlinear else None
         self.clearance, self.k_c = td.clearance, td.stiffness
         self.c_c, self.mu, self.radius = td.damping, td.friction, cfg.shaft.diameter / 2
         self.substeps = 1
@@ -135,20 +104,19 @@ class RigForces:
         n = self.n
         f = np.zeros(2 * len(self.nodes))
         r = self.T @ x[:n]
-        if self.nonlinear:
+        if self.nonlinear:  # magnet.BearingLaw: the law's departure from its linearisation ki i + |ks| x
             y = r[self.amb_idx]
             ic = x[self.layout.amp] if self.layout.amp is not None else i
-            fnl = nonlinear_bearing_force(y, ic, self.ki, self.ks, self.i0, self.g0, self.f_sat)
-            f[self.amb_idx] += fnl - (self.ki * ic - self.ks * y)
-        if self.touchdown:
+            f[self.amb_idx] += self.law.force(y, ic) - self.law.linear_force(y, ic)
+        if self.touchdown:  # touchdown.contact_forces at every backup-bearing node at once
             v = self.T @ x[n : 2 * n]
-            for j, node in zip(self.td_idx, self.td_nodes, strict=True):
-                fy, fz, d = contact_force(
-                    r[2 * j : 2 * j + 2], v[2 * j : 2 * j + 2], self.clearance, self.k_c, self.c_c, self.mu,
-                    self.radius, spin,
-                )  # fmt: skip
-                f[2 * j] += fy
-                f[2 * j + 1] += fz
-                if log is not None:
-                    log.record(node, t, d, math.hypot(fy, fz))
+            rows = self.td_rows
+            c = contact_forces(
+                r[rows].reshape(-1, 2), v[rows].reshape(-1, 2), spin, self.radius, self.clearance, self.k_c,
+                self.c_c, self.mu,
+            )  # fmt: skip
+            f[rows] += c.force.ravel()
+            if log is not None:
+                for node, d, fy, fz in zip(self.td_nodes, c.penetration, c.force[:, 0], c.force[:, 1], strict=True):
+                    log.record(node, t, float(d), math.hypot(fy, fz))
         return f
