@@ -99,8 +99,12 @@ class RigForces:
                 return True
         return False
 
-    def node_forces(self, x: np.ndarray, i: np.ndarray, spin: float, t: float, log: ContactLog | None) -> np.ndarray:
-        """Forces (N) at the force nodes, (y, z) each, for state x and held command i; logs contacts if given."""
+    def node_forces(
+        self, x: np.ndarray, i: np.ndarray, spin: float, t: float, log: ContactLog | None, near: bool = True
+    ) -> np.ndarray:
+        """Forces (N) at the force nodes, (y, z) each, for state x and held command i; logs contacts if given.
+
+        ``near`` False (no touchdown node within NEAR x clearance, see ``near()``): no contact is evaluated."""
         n = self.n
         f = np.zeros(2 * len(self.nodes))
         r = self.T @ x[:n]
@@ -108,7 +112,7 @@ class RigForces:
             y = r[self.amb_idx]
             ic = x[self.layout.amp] if self.layout.amp is not None else i
             f[self.amb_idx] += self.law.force(y, ic) - self.law.linear_force(y, ic)
-        if self.touchdown:  # touchdown.contact_forces at every backup-bearing node at once
+        if self.touchdown and near:  # touchdown.contact_forces at every backup-bearing node at once
             v = self.T @ x[n : 2 * n]
             rows = self.td_rows
             c = contact_forces(

@@ -269,7 +269,8 @@ class RigPlant:
                 held[2 * j] -= U * accel * math.sin(a)
                 held[2 * j + 1] += U * accel * math.cos(a)
         cs = np.array([math.cos(self.phi), math.sin(self.phi)])
-        m = self.forces.substeps if self.forces.near(x, self.Ts) else 1
+        near = self.forces.near(x, self.Ts)
+        m = self.forces.substeps if near else 1
         h = self.Ts / m
         E, G, g, GF, Gu = self.step_matrices(Omega, dOmega, spin, h)
         rot = np.array([[math.cos(spin * h), -math.sin(spin * h)], [math.sin(spin * h), math.cos(spin * h)]])
@@ -279,9 +280,9 @@ class RigPlant:
             base = E @ x + const + Gu @ cs
             if self.forces.active:
                 t = self.t + j * h
-                f0 = self.forces.node_forces(x, i, spin, t, self.contact)
+                f0 = self.forces.node_forces(x, i, spin, t, self.contact, near)
                 x_pred = base + GFn @ f0
-                f1 = self.forces.node_forces(x_pred, i, spin, t + h, None)
+                f1 = self.forces.node_forces(x_pred, i, spin, t + h, None, near)
                 x = base + GFn @ (0.5 * (f0 + f1))
             else:
                 x = base
