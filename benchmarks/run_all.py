@@ -13,7 +13,14 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from amb_ros.env import ensure_localhost_dds
 
-BENCHMARKS = ("bench_dynamics", "bench_lockstep", "bench_bag", "bench_recording_cost", "bench_monitor")
+BENCHMARKS = (
+    "bench_dynamics",
+    "bench_lockstep",
+    "bench_bag",
+    "bench_recording_cost",
+    "bench_monitor",
+    "bench_rig_plant",
+)
 
 
 def main() -> int:
