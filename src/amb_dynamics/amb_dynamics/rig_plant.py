@@ -243,7 +243,7 @@ class RigPlant:
         spin = self.spin_speed()
         i = self.applied_current(x, i_cmd)
         self.max_command = max(self.max_command, float(np.max(np.abs(i_cmd))))
-        if i is not i_cmd:
+        if i is not i_cmd and not np.array_equal(i, i_cmd):  # clamped or slew-limited this step
             self.saturated += 1
         if self.linear_only:
             E, G, g, _, _ = self.step_matrices(Omega, dOmega, spin)
