@@ -34,6 +34,7 @@ BENCHMARKS = (
     "bench_monitor",
     "bench_live_cost",
     "bench_sensitivity",
+    "bench_rig_plant",
 )
 
 

@@ -28,6 +28,7 @@ import json
 import re
 import subprocess
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -47,11 +48,14 @@ COMPARED_KEYS = ("samples", "samples lost", "refits", "restarts", "period (s)", 
                  "verdict", "periods used", "rank", "signal rank", "rho", "rho std", "confidence",
                  "estimate time (s)", "flag raised at (s)", "unstable")  # fmt: skip
 
+PAPER = Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml"  # the paper's idealised rotor
+
 
 def record_live_run(venv_bin, tmp_path):
     T = N * TS
     bag = tmp_path / "live"
-    cmd = [str(venv_bin / "amb-rig"), "run", "--json", "--duration", repr(PERIODS * T), "--motion", "pitch",
+    cmd = [str(venv_bin / "amb-rig"), "run", "--json", "--config", str(PAPER), "--duration", repr(PERIODS * T),
+           "--motion", "pitch",
            "--amplitude", "0.6", "--frequency", repr(np.pi / T), "--initial-displacement", "1e-3",
            "--set", "controller.current_limit=1e9", "--param", "plant:max_displacement_ratio=1e9",
            "--bag", str(bag), "--log-dir", str(tmp_path / "rig")]  # fmt: skip
@@ -213,7 +217,7 @@ def stream():
     from amb_dynamics.sampled import SampledLoop
     from amb_dynamics.structure import build_structure
 
-    cfg = load_config()
+    cfg = load_config(PAPER)  # the idealised loop the live run ran
     model = build_structure(cfg)
     loop = SampledLoop(model, cfg)
     motion = BaseMotion.single("pitch", 0.6, np.pi / (N * loop.Ts))

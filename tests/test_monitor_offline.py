@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -36,7 +37,7 @@ N, AMPLITUDE, PERIODS = 718, 0.6, 14
 
 @pytest.fixture(scope="module")
 def run_data():
-    cfg = load_config()
+    cfg = load_config(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")  # idealised loop
     model = build_structure(cfg)
     loop = SampledLoop(model, cfg)
     T = N * loop.Ts
@@ -125,7 +126,11 @@ def bag(run_data, tmp_path_factory):
     return write_bag(tmp_path_factory.mktemp("bags") / "unstable", run_data)
 
 
+PAPER = Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml"  # the config the bags were made with
+
+
 def monitor(venv_bin, *args):
+    args = (*args, "--config", PAPER) if args[0] == "analyze" and "--config" not in args else args
     return subprocess.run([str(venv_bin / "amb-monitor"), *map(str, args)], capture_output=True, text=True, timeout=120)
 
 

@@ -18,6 +18,7 @@ raised by one, so that they wait for this monitor before step 0 and it sees ever
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -32,6 +33,8 @@ TS = 2e-4  # the seed config's 5 kHz loop
 # the paper's 1 mm disk displacement; no current limit and no displacement stop: the linear loop of the model
 START = ["--param", "plant:initial_displacement=1e-3", "--set", "controller.current_limit=1e9",
          "--param", "plant:max_displacement_ratio=1e9"]  # fmt: skip
+
+PAPER = str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")  # the paper's idealised rotor
 
 
 @pytest.fixture
@@ -78,7 +81,8 @@ def listener():
 def run_case(listener, venv_bin, tmp_path, amplitude, N, periods, sensor_only):
     T = N * TS
     omega = np.pi / T
-    monitor_cmd = [str(venv_bin / "amb-monitor"), "--ros-args", "-p", "diagnostics_period_s:=0.2"]
+    monitor_cmd = [str(venv_bin / "amb-monitor"), "--ros-args", "-p", "diagnostics_period_s:=0.2",
+                   "-p", f"config_file:={PAPER}"]  # fmt: skip
     rig_cmd = [
         str(venv_bin / "amb-rig"),
         "run",
@@ -96,7 +100,7 @@ def run_case(listener, venv_bin, tmp_path, amplitude, N, periods, sensor_only):
         *START,
     ]  # fmt: skip  (this test runs its own monitor, started first)
     # the plant and base_motion wait until this monitor reads their topics: it sees every sample from the first
-    rig_cmd += ["--param", "base_motion:min_imu_subscribers=1"]
+    rig_cmd += ["--param", "base_motion:min_imu_subscribers=1", "--config", PAPER]
     if sensor_only:
         monitor_cmd += ["-p", "input:=displacement"]
         rig_cmd += ["--param", "plant:min_subscribers=2"]

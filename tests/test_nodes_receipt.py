@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import struct
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -196,8 +197,11 @@ def test_controller_rejects_bad_samples_over_dds(tmp_path, venv_bin):
     currents = rec.messages["/amb/current"]
     assert len(currents) == 1
     cfg = load_config()
-    pid = DiscretePID(DiscretePIDCoefficients.from_gains(AMBGains.from_config(cfg), 2e-4), 4, 10.0)
-    np.testing.assert_allclose(currents[0].effort, pid.step(y0), rtol=1e-15, atol=0)
+    lim = cfg.controller.current_limit
+    pid = DiscretePID(DiscretePIDCoefficients.from_gains(AMBGains.from_config(cfg), 2e-4), 4, lim)
+    offset = np.array(cfg.controller.bias_current_offset or (0.0,) * 4)  # the static load's bias (real rig)
+    expected = np.clip(pid.step(y0) + offset, -lim, lim)
+    np.testing.assert_allclose(currents[0].effort, expected, rtol=1e-15, atol=0)
     statuses = [s for a in rec.messages["/diagnostics"] for s in a.status if s.name == "amb_controller"]
     final = [s for s in statuses if {kv.key: kv.value for kv in s.values}.get("final") == "true"]
     assert final, "no final diagnostics from the controller"
@@ -261,7 +265,9 @@ def test_plant_takes_base_rate_blocks_and_rejects_bad_ones_over_dds(tmp_path, ve
     node.create_subscription(Clock, m.CLOCK, lambda _c: None, qos)
     executor = SingleThreadedExecutor(context=ctx)
     executor.add_node(node)
-    params = [f"duration_s:={steps * 2e-4!r}", "initial_displacement:=0.0001", "min_state_subscribers:=1"]
+    paper = Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml"  # the linear plant: PlantStepper
+    params = [f"duration_s:={steps * 2e-4!r}", "initial_displacement:=0.0001", "min_state_subscribers:=1",
+              f"config_file:={paper}"]  # fmt: skip
     try:
         with spawn([str(venv_bin / "amb-plant"), "--ros-args", *[a for p in params for a in ("-p", p)]],
                    tmp_path / "plant.log") as plant:  # fmt: skip
@@ -280,7 +286,7 @@ def test_plant_takes_base_rate_blocks_and_rejects_bad_ones_over_dds(tmp_path, ve
         node.destroy_node()
         ctx.try_shutdown()
         rec.close()
-    cfg = load_config()
+    cfg = load_config(paper)
     model = build_structure(cfg)
     stepper = PlantStepper(model, cfg, 2e-4)
     stamps, rows = zip(*(block_of(b, model.dof_names) for b in rec.messages["/amb_plant/state"]), strict=True)

@@ -9,6 +9,8 @@ pitch-modulated closed loop has something to do; base forcing is off in the seed
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -46,7 +48,7 @@ def lockstep_run(tmp_path, venv_bin, extra=()):
                 str(DISK_V),
                 "--param",
                 "plant:min_subscribers=2",
-                *extra,
+                *(extra if "--config" in extra else ["--config", PAPER, *extra]),
             ],
         )
     finally:
@@ -67,8 +69,11 @@ def rec_blocks(samples: int, block: int) -> list[int]:
     return [min(block, samples - a) for a in range(0, samples, block)]
 
 
+PAPER = str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")  # the idealised loop
+
+
 def offline(steps: int):
-    cfg = load_config()
+    cfg = load_config(PAPER)
     model = build_structure(cfg)
     q = np.zeros(model.fe.n)
     q[dof_index(cfg.disks[0].node, 0)] = DISK_V

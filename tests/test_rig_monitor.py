@@ -3,6 +3,7 @@
 import json
 import re
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,7 +13,8 @@ from helpers import model_rho
 pytestmark = pytest.mark.ros
 
 TS = 2e-4
-LINEAR = ["--initial-displacement", "1e-3", "--set", "controller.current_limit=1e9",
+PAPER = str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")  # the paper's idealised rotor
+LINEAR = ["--config", PAPER, "--initial-displacement", "1e-3", "--set", "controller.current_limit=1e9",
           "--param", "plant:max_displacement_ratio=1e9"]  # fmt: skip
 
 

@@ -3,7 +3,11 @@
 1. the closed-loop modes at 0 and 1000 rpm and the Campbell diagram (core),
 2. the pitch case of the paper (0.3 rad at 24.5 rad/s): Floquet multipliers of the continuous and the digital loop,
 3. the ROS 2 node suite on that case: `amb-rig run` (lockstep over DDS, localhost only), recorded to an MCAP bag,
-   with the stability monitor's verdict, then `amb-bag info` of the bag.
+   with the stability monitor's verdict, then `amb-bag info` of the bag,
+4. the real rig (config/seed_rotor.yaml: unbalance, gravity, noise, amplifier and sensor dynamics, nonlinear
+   bearing force, touchdown bearings) on the plant node's stepping code (`amb-dynamics simulate --sampled`):
+   unbalance orbits inside the clearance circles, a run-up through the first critical speed, and a drop onto the
+   touchdown bearings after a controller failure; the same failure over DDS with `--param controller:fail_at_s=`.
 """
 
 from __future__ import annotations
@@ -18,6 +22,9 @@ REPO = Path(__file__).resolve().parents[1]
 OUT = REPO / "out"
 BIN = Path(sys.executable).parent
 CASE = ["--motion", "pitch", "--amplitude", "0.3", "--frequency", "24.5"]
+PAPER = ["--config", str(REPO / "config" / "seed_paper.yaml")]  # the paper's idealised rotor
+RAMP = ["--set", "spin.profile=ramp", "--set", "spin.start_rpm=500", "--set", "spin.end_rpm=2500",
+        "--set", "spin.rate_rpm_s=2500"]  # fmt: skip
 
 
 def step(title: str, cmd: list[str]) -> None:
@@ -37,21 +44,48 @@ def main() -> None:
         [dyn, "modes", "--speed-rpm", "0", "1000", "--max-frequency", "600"],
     )
     step("Campbell diagram", [dyn, "campbell", "--out", str(OUT / "campbell.png")])
-    step("Floquet multipliers, continuous PD", [dyn, "floquet", *CASE, "--top", "4"])
+    step("Floquet multipliers, continuous PD (paper model)", [dyn, "floquet", *PAPER, *CASE, "--top", "4"])
     step(
         "Floquet multipliers, digital PD at the configured rate (T = pi/24.5 s is not a whole number of samples)",
-        [dyn, "floquet", *CASE, "--controller", "sampled", "--snap", "--top", "4"],
+        [dyn, "floquet", *PAPER, *CASE, "--controller", "sampled", "--snap", "--top", "4"],
     )
     bag = OUT / "demo_bag"
     if bag.exists():
         shutil.rmtree(bag)
     step(
         "ROS 2 node suite: base_motion, amb_plant, amb_controller, stability_monitor, recorder (lockstep)",
-        [str(BIN / "amb-rig"), "run", "--duration", "3", *CASE, "--initial-displacement", "1e-3", "--bag", str(bag)],
+        [
+            str(BIN / "amb-rig"),
+            "run",
+            "--duration",
+            "3",
+            *PAPER,
+            *CASE,
+            "--initial-displacement",
+            "1e-3",
+            "--bag",
+            str(bag),
+        ],
     )
     step("the recorded bag", [str(BIN / "amb-bag"), "info", str(bag)])
     step("plot of the recorded run", [str(BIN / "amb-bag"), "plot", str(bag), "--out", str(OUT / "demo_run.png")])
-    print(f"\noutputs: {OUT}/campbell.png, {OUT}/demo_run.png, bag {bag}/ (rosbag2 layout, MCAP)")
+    real_rig(dyn)
+    print(f"\noutputs: {OUT}/campbell.png, {OUT}/demo_run.png, bag {bag}/ (rosbag2 layout, MCAP), "
+          f"{OUT}/rig_orbits.png, {OUT}/rig_runup.png, {OUT}/rig_drop.png")  # fmt: skip
+
+
+def real_rig(dyn: str) -> None:
+    """The real-rig default on the plant node's stepping code (base at rest, every effect of the config)."""
+    sim = [dyn, "simulate", "--sampled", "--motion", "none"]
+    step("real rig: unbalance orbits at both AMBs (G2.5, 1000 rpm), inside the clearance circles",
+         [*sim, "--duration", "0.5", "--out", str(OUT / "rig_orbits.png")])  # fmt: skip
+    step("real rig: run-up 500 -> 2500 rpm at 2500 rpm/s through the first critical speed",
+         [*sim, *RAMP, "--duration", "0.9", "--out", str(OUT / "rig_runup.png")])  # fmt: skip
+    step("real rig: controller failure at 0.2 s, the rotor drops onto its touchdown bearings",
+         [*sim, "--fail-at-s", "0.2", "--duration", "0.5", "--out", str(OUT / "rig_drop.png")])  # fmt: skip
+    step("the same drop over DDS: amb-rig with --param controller:fail_at_s (lockstep, base at rest)",
+         [str(BIN / "amb-rig"), "run", "--duration", "0.4", "--motion", "none", "--no-monitor",
+          "--param", "controller:fail_at_s=0.2"])  # fmt: skip
 
 
 if __name__ == "__main__":

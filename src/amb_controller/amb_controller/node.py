@@ -27,8 +27,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool
 
 import amb_ros.messages as m
-from amb_dynamics.amb import DiscretePID, DiscretePIDCoefficients
+from amb_dynamics.amb import DiscretePIDCoefficients
 from amb_dynamics.errors import InputError
+from amb_dynamics.rig_loop import RigController
 from amb_dynamics.structure import AMBGains, channel_names
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.live_params import LiveParams, param_at_spec
@@ -63,6 +64,8 @@ def specs() -> list[ParamSpec]:
                   choices=("sample", "timer")),
         ParamSpec("sensor_timeout_s", 0.1, "no new sample for this long: zero current and ERROR (realtime)", "s",
                   1e-4, 3600.0),
+        ParamSpec("fail_at_s", -1.0, "rehearse a controller failure: zero current from this time on (a drop onto "
+                  "the touchdown bearings); < 0 = never", "s", -1.0, 1e9),
         ParamSpec("excitation_kind", "none", "current injected for identification", choices=KINDS, runtime=True),
         ParamSpec("excitation_amplitude", 0.0, "sine amplitude or noise standard deviation", "A", 0.0, 1e6,
                   runtime=True),
@@ -97,9 +100,11 @@ class ControllerNode(RigNode):
                 f"parameter 'excitation_channels' = {chans}: indices must be in 0..{len(self.channels) - 1}"
             )
         self.gain_set, self.safe_switch_t, self.unstable_sub = "nominal", None, None
-        self.pid = DiscretePID(
-            self.coefficients("nominal"), len(self.channels), p["current_limit"], cfg.controller.delay_samples
-        )
+        fail = p["fail_at_s"] if p["fail_at_s"] >= 0 else None
+        # the core's controller (PID + bias offset, zero current from fail_at_s): the offline rig loop runs the same
+        self.rig_ctrl = RigController(cfg, AMBGains.from_config(cfg), self.Ts, p["current_limit"], fail)
+        self.pid = self.rig_ctrl.pid
+        self.pid.c = self.coefficients("nominal")  # the gains as given (parameters may override the config)
         self.excitation = Excitation(p["excitation_kind"], p["excitation_amplitude"], p["excitation_frequency_hz"],
                                      chans, len(self.channels), p["excitation_seed"])  # fmt: skip
         qos = data_qos(self.mode, p["qos_depth"])
@@ -206,7 +211,7 @@ class ControllerNode(RigNode):
             self.live.at_sample(t_ns)
         y = self.injection.apply(t_ns, y, t)
         with np.errstate(over="ignore", invalid="ignore"):
-            u = self.pid.step(y)
+            u = self.rig_ctrl.step(round(t / self.Ts), y)
         if self.excitation.active:
             u = np.clip(u + self.excitation(t), -self.p["current_limit"], self.p["current_limit"])
         if not np.isfinite(u).all():  # only with a limitless controller on a diverged plant: never publish it

@@ -212,6 +212,10 @@ def run_sweep(args):
 def run_simulate(args):
     s = setup(args)
     motion = motion_of(args, s.cfg)
+    if getattr(args, "sampled", False):  # the digital loop on the rig plant (the plant node's stepping code)
+        from .rig_sim import run_sampled
+
+        return run_sampled(s, motion, args, describe)
     ps = periodic_system(s.loop, motion, s.cfg.spin_rad_s)
     disk_node = s.cfg.disks[0].node if s.cfg.disks else s.cfg.n_nodes
     x0 = disk_initial_state(s.model, s.loop.N, disk_node)

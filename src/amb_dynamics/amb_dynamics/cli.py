@@ -123,6 +123,12 @@ def build_parser() -> argparse.ArgumentParser:
     _motion(p)
     p.add_argument("--duration", type=float, default=20.0, help="s")
     p.add_argument("--steps-per-period", type=int, default=200)
+    p.add_argument(
+        "--sampled",
+        action="store_true",
+        help="the digital loop on the rig plant (every effect of the config; the plant node's code) instead of Newmark",
+    )
+    p.add_argument("--fail-at-s", type=float, default=None, help="--sampled: zero control current from this time (s)")
     p.add_argument("--out", type=Path, default=Path("out/response.png"))
     p = sub.add_parser("sensitivity", help="model sensitivity S_jj per AMB axis with its ISO 14839-3 zone")
     _common(p)

@@ -200,7 +200,9 @@ def sampled_floquet(
         p = max(1, round(period / Ts))
         new_Ts = period / p
         notes = (f"Ts snapped from {Ts:.9g} s to T/{p} = {new_Ts:.9g} s",)
-        loop = SampledLoop(loop.model, loop.cfg, Ts=new_Ts, delay_samples=loop.delay, forcing=False)
+        loop = SampledLoop(
+            loop.model, loop.cfg, Ts=new_Ts, delay_samples=loop.delay, forcing=False, dynamics=loop.plant.dynamics
+        )
         pr = (p, 1)
     p, r = pr
     Psi = chain_product(sampled_step_maps(loop, motion, p))

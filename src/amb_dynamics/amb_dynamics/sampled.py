@@ -19,6 +19,7 @@ import scipy.linalg as sla
 from .amb import DiscretePID, DiscretePIDCoefficients, pid_update_matrices
 from .config import RotorConfig
 from .motion import BaseMotion
+from .plant_dynamics import PlantDynamics, StateLayout, open_loop_plant
 from .structure import StructuralModel
 from .system import COEFFICIENTS, coefficients_from_rates, forcing_from_rates, parametric_matrices
 
@@ -26,7 +27,8 @@ CACHE_LIMIT = 4096  # step matrices kept for repeated base samples (a static or 
 
 
 class PlantStepper:
-    """Exact ZOH propagation of the open-loop plant xp = [q; q'] over one sample period Ts.
+    """Exact ZOH propagation of the open-loop plant xp = [q; q'] (plus amplifier and sensor-filter states,
+    :mod:`amb_dynamics.plant_dynamics`) over one sample period Ts.
 
     Parameters
     ----------
@@ -34,20 +36,37 @@ class PlantStepper:
     cfg : RotorConfig (formulation, drive model, axial stiffening)
     Ts : float, sample period (s)
     forcing : bool or None, include the base-motion forcing f(t) (docs/physics.md#forcing); None: cfg.base_forcing
+    dynamics : PlantDynamics or None, amplifier/sensor/shaft-damping additions; None: from cfg
     """
 
-    def __init__(self, model: StructuralModel, cfg: RotorConfig, Ts: float, forcing: bool | None = None):
+    def __init__(
+        self,
+        model: StructuralModel,
+        cfg: RotorConfig,
+        Ts: float,
+        forcing: bool | None = None,
+        dynamics: PlantDynamics | None = None,
+    ):
         forcing = cfg.base_forcing if forcing is None else forcing
         n = model.n
         self.n, self.Ts, self.model = n, Ts, model
         self.spin = cfg.spin_rad_s
         Minv = sla.inv(model.M)
-        Kp = model.mats["K_B"] + model.gains.ks * model.Ba @ model.Ba.T  # negative stiffness, not sampled
-        self.Ap0 = np.zeros((2 * n, 2 * n))
-        self.Ap0[:n, n:] = np.eye(n)
-        self.Ap0[n:, :n] = -Minv @ Kp
-        if "D_s" in model.mats:  # structural damping of the shaft (damping.py)
-            self.Ap0[n:, n:] = -Minv @ model.mats["D_s"]
+        self.dynamics = PlantDynamics.from_config(cfg) if dynamics is None else dynamics
+        if self.dynamics.augmented:  # amplifier lag, sensor filter, shaft damping (plant_dynamics)
+            self.Ap0, self.Bp, self.Cm, self.Cy, self.layout = open_loop_plant(model, self.dynamics, Minv)
+        else:  # the paper's plant: x_p = [q; q'], ideal current source and sensor
+            Kp = model.mats["K_B"] + model.gains.ks * model.Ba @ model.Ba.T  # negative stiffness, not sampled
+            self.Ap0 = np.zeros((2 * n, 2 * n))
+            self.Ap0[:n, n:] = np.eye(n)
+            self.Ap0[n:, :n] = -Minv @ Kp
+            if "D_s" in model.mats:  # structural damping of the shaft (damping.py)
+                self.Ap0[n:, n:] = -Minv @ model.mats["D_s"]
+            self.Bp = np.zeros((2 * n, 4))
+            self.Bp[n:] = Minv @ model.Ba * model.gains.ki
+            self.layout = StateLayout.of(n, self.dynamics)
+            self.Cm = self.Cy = None
+        N = self.N = self.layout.N
         terms = [
             (COEFFICIENTS.index(name), Kj, Dj)
             for name, (Kj, Dj) in parametric_matrices(model, cfg).items()
@@ -55,15 +74,18 @@ class PlantStepper:
         ]
         # A_p(c) = Ap0 + sum_j c[idx_j] Ap_stack[j]: one tensordot per step instead of a Python sum
         self.Ap_idx = np.array([j for j, _, _ in terms], dtype=int)
-        self.Ap_stack = np.zeros((len(terms), 2 * n, 2 * n))
+        self.Ap_stack = np.zeros((len(terms), N, N))
         for j, (_, Kj, Dj) in enumerate(terms):
-            self.Ap_stack[j, n:, :n], self.Ap_stack[j, n:, n:] = -Minv @ Kj, -Minv @ Dj
-        self.Bp = np.zeros((2 * n, 4))
-        self.Bp[n:] = Minv @ model.Ba * model.gains.ki
-        self.Bf = np.zeros((2 * n, 4))
+            self.Ap_stack[j, n : 2 * n, :n], self.Ap_stack[j, n : 2 * n, n : 2 * n] = -Minv @ Kj, -Minv @ Dj
+        self.Bf = np.zeros((N, 4))
         if forcing:
-            self.Bf[n:] = Minv @ model.forcing
+            self.Bf[n : 2 * n] = Minv @ model.forcing
         self._cache: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        """Names of the plant state x_p: q, d_q, then amp_<channel> and sens_<channel> when present."""
+        return self.layout.labels(self.model.dof_names, self.model.channels)
 
     def matrices(self, Omega: np.ndarray, dOmega: np.ndarray):
         """(E, Gamma, g) for base rates held at (Omega, dOmega) over the step."""
@@ -73,7 +95,7 @@ class PlantStepper:
             return hit
         c = coefficients_from_rates(np.asarray(Omega, float), np.asarray(dOmega, float), self.spin)
         a = forcing_from_rates(np.asarray(Omega, float), np.asarray(dOmega, float), self.spin)
-        n2 = 2 * self.n
+        n2 = self.N
         aug = np.zeros((n2 + 5, n2 + 5))
         aug[:n2, :n2] = self.Ap0 + np.tensordot(c[self.Ap_idx], self.Ap_stack, axes=1)
         aug[:n2, n2 : n2 + 4] = self.Bp
@@ -89,7 +111,13 @@ class PlantStepper:
         return E @ xp + G @ current + g
 
     def output(self, xp: np.ndarray) -> np.ndarray:
-        """AMB displacements y = Ba^T q (m), channels of model.channels."""
+        """What the sensors report (m), channels of model.channels: y = Ba^T q, or the filtered y_f."""
+        if self.layout.sens is not None:
+            return xp[self.layout.measured].copy()
+        return self.model.Ba.T @ xp[: self.n]
+
+    def displacement(self, xp: np.ndarray) -> np.ndarray:
+        """True AMB displacements y = Ba^T q (m)."""
         return self.model.Ba.T @ xp[: self.n]
 
 
@@ -113,11 +141,12 @@ class SampledLoop:
         Ts: float | None = None,
         delay_samples: int | None = None,
         forcing: bool | None = None,
+        dynamics: PlantDynamics | None = None,
     ):
         self.Ts = Ts if Ts is not None else 1.0 / cfg.controller.rate_hz
         self.cfg, self.model = cfg, model
         self.delay = cfg.controller.delay_samples if delay_samples is None else delay_samples
-        self.plant = PlantStepper(model, cfg, self.Ts, forcing=forcing)
+        self.plant = PlantStepper(model, cfg, self.Ts, forcing=forcing, dynamics=dynamics)
         self.pid_coeffs = DiscretePIDCoefficients.from_gains(model.gains, self.Ts)
 
     def new_controller(self, current_limit: float | None = None) -> DiscretePID:
@@ -125,13 +154,14 @@ class SampledLoop:
 
     def simulate(self, motion: BaseMotion, steps: int, x0: np.ndarray) -> SampledRun:
         """The closed loop exactly as the node suite runs it (lockstep), without saturation."""
-        n2 = 2 * self.model.n
+        n2 = self.plant.N
         t = np.arange(steps + 1) * self.Ts
         Om, dOm = motion.angular_velocity(t)
         x = np.empty((steps + 1, n2))
         y = np.empty((steps + 1, 4))
         cur = np.empty((steps, 4))
-        x[0] = x0
+        x[0] = 0.0
+        x[0, : len(x0)] = x0  # a [q; q'] initial state leaves the amplifier and filter states at zero
         pid = self.new_controller()
         for k in range(steps):
             y[k] = self.plant.output(x[k])
@@ -146,9 +176,12 @@ class SampledLoop:
         use_int, use_eta = g.kI != 0.0, g.kd != 0.0
         Py, Pm, Uy, Um, parts = pid_update_matrices(self.pid_coeffs, 4, use_int, use_eta, self.delay > 0)
         E, Gam, _ = self.plant.matrices(Omega, dOmega)
-        n, n2, nm = self.model.n, 2 * self.model.n, Pm.shape[0]
-        Cy = np.zeros((4, n2))
-        Cy[:, :n] = self.model.Ba.T
+        n, n2, nm = self.model.n, self.plant.N, Pm.shape[0]
+        if self.plant.Cm is not None:
+            Cy = self.plant.Cm
+        else:
+            Cy = np.zeros((4, n2))
+            Cy[:, :n] = self.model.Ba.T
         F = np.zeros((n2 + nm, n2 + nm))
         if self.delay:
             j = parts.index("u")

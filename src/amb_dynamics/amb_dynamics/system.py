@@ -15,6 +15,7 @@ import scipy.linalg as sla
 
 from .config import RotorConfig
 from .motion import BaseMotion
+from .plant_dynamics import PlantDynamics, closed_loop_matrix
 from .structure import StructuralModel
 
 # c_j(t) in A(t) = A0 + sum c_j A_j  (Phi = phi_dot + Omega_x is the total spin)
@@ -104,8 +105,11 @@ class ClosedLoop:
         return out
 
 
-def closed_loop(model: StructuralModel, cfg: RotorConfig) -> ClosedLoop:
-    """Assemble the continuous closed loop of docs/physics.md#controller (collocated PID, ideal or filtered)."""
+def closed_loop(model: StructuralModel, cfg: RotorConfig, dynamics: PlantDynamics | None = None) -> ClosedLoop:
+    """Assemble the continuous closed loop of docs/physics.md#controller (collocated PID, ideal or filtered).
+
+    ``dynamics``: amplifier, sensor filter and shaft damping (default: from ``cfg``, :mod:`.plant_dynamics`).
+    """
     n, g, Ba = model.n, model.gains, model.Ba
     M = model.M
     Minv = sla.inv(M)  # n <= a few hundred; M is factored once here, never in a loop
@@ -113,6 +117,38 @@ def closed_loop(model: StructuralModel, cfg: RotorConfig) -> ClosedLoop:
     use_filt = g.omega_f is not None
     na = Ba.shape[1]  # AMB axes
     ne, nf = (na if use_int else 0), (na if use_filt else 0)
+    N = 2 * n + ne + nf
+    dyn = PlantDynamics.from_config(cfg) if dynamics is None else dynamics
+    if dyn.augmented:  # amplifier, sensor filter or shaft damping (plant_dynamics); else the paper's loop below
+        A0, lay, _, _ = closed_loop_matrix(model, dyn, Minv)
+        N = A0.shape[0]
+    else:
+        A0 = _paper_closed_loop(model, Minv, ne, nf)
+    terms = {}
+    for name, (Kj, Dj) in parametric_matrices(model, cfg).items():
+        if not Kj.any() and not Dj.any():
+            continue
+        Aj = np.zeros((N, N))
+        Aj[n : 2 * n, :n] = -Minv @ Kj
+        Aj[n : 2 * n, n : 2 * n] = -Minv @ Dj
+        terms[name] = Aj
+    Bf = np.zeros((N, 4))
+    Bf[n : 2 * n] = Minv @ model.forcing
+    labels = (
+        *model.dof_names,
+        *(f"d_{d}" for d in model.dof_names),
+        *(f"int_{c}" for c in model.channels[:ne]),
+        *(f"filt_{c}" for c in model.channels[:nf]),
+    )
+    if dyn.augmented:
+        labels += lay.labels((), model.channels)
+    return ClosedLoop(A0, terms, Bf, n, labels)
+
+
+def _paper_closed_loop(model: StructuralModel, Minv: np.ndarray, ne: int, nf: int) -> np.ndarray:
+    """A0 of docs/physics.md#controller: ideal current source, ideal sensor, undamped shaft."""
+    n, g, Ba = model.n, model.gains, model.Ba
+    use_int, use_filt = ne > 0, nf > 0
     N = 2 * n + ne + nf
     Ky = g.ki * g.kp + g.ks + (g.ki * g.kd * g.omega_f if use_filt else 0.0)
     Dy = 0.0 if use_filt else g.ki * g.kd
@@ -131,23 +167,7 @@ def closed_loop(model: StructuralModel, cfg: RotorConfig) -> ClosedLoop:
         A0[n : 2 * n, i : i + 4] = Minv @ Ba * (g.ki * g.kd * g.omega_f)
         A0[i : i + 4, :n] = g.omega_f * Ba.T
         A0[i : i + 4, i : i + 4] = -g.omega_f * np.eye(4)
-    terms = {}
-    for name, (Kj, Dj) in parametric_matrices(model, cfg).items():
-        if not Kj.any() and not Dj.any():
-            continue
-        Aj = np.zeros((N, N))
-        Aj[n : 2 * n, :n] = -Minv @ Kj
-        Aj[n : 2 * n, n : 2 * n] = -Minv @ Dj
-        terms[name] = Aj
-    Bf = np.zeros((N, 4))
-    Bf[n : 2 * n] = Minv @ model.forcing
-    labels = (
-        *model.dof_names,
-        *(f"d_{d}" for d in model.dof_names),
-        *(f"int_{c}" for c in model.channels[:ne]),
-        *(f"filt_{c}" for c in model.channels[:nf]),
-    )
-    return ClosedLoop(A0, terms, Bf, n, labels)
+    return A0
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ def run_lockstep(node) -> None:
     """Step k: publish /clock t_k, y_k, state; wait for base sample k and the command for t_k; advance."""
     Ts_ns = node.Ts_ns
     steps = round(node.p["duration_s"] / node.Ts) if node.p["duration_s"] > 0 else None
-    clock_codec, stepper = node.clock_codec, node.stepper
+    clock_codec, stepper = node.clock_codec, node.rig
     clock_every = node.p["clock_every"]
     only_command = [node.cmd_sub]
     no_values = np.zeros(0)
@@ -39,8 +39,8 @@ def run_lockstep(node) -> None:
         while True:
             node.drain()
             if mats is None and k in node.rates:
-                rates = node.rates.pop(k)
-                mats = stepper.matrices(rates[:3], rates[3:])  # overlaps with the controller's computation
+                mats = node.rates.pop(k)
+                stepper.prepare(mats[:3], mats[3:])  # the step's matrices, while the controller computes
             if mats is not None and k in node.commands:
                 break
             if node.stop.is_set:
@@ -93,7 +93,7 @@ def run_realtime(node) -> None:
         node.k_now = k
         if k > 0:
             om, dom = node.latest_rates
-            node.advance(node.stepper.matrices(om, dom), node.policy.current(k))
+            node.advance(np.concatenate([om, dom]), node.policy.current(k))
         node.publish_outputs(k, node.get_clock().now().nanoseconds)
         if end is not None and time.monotonic() >= end:
             node.finished = True

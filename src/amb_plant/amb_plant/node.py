@@ -33,17 +33,19 @@ from geometry_msgs.msg import Vector3Stamped
 from rclpy.duration import Duration
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
 import amb_ros.messages as m
 from amb_dynamics.fe import dof_index
-from amb_dynamics.sampled import PlantStepper
+from amb_dynamics.rig_loop import levitated_state
+from amb_dynamics.rig_plant import RigPlant
 from amb_dynamics.structure import build_structure
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
-from amb_ros.qos import data_qos
+from amb_ros.qos import data_qos, latched_qos
 from amb_ros.runtime import RunFailed, run_node
 from amb_ros.state_block import StateBlockDecoder, StateBlockWriter
 
@@ -78,6 +80,7 @@ def specs() -> list[ParamSpec]:
                   "model means nothing there)", "", 1.0, 1e12),
         ParamSpec("clock_every", 5, "lockstep: publish /clock every N steps (5 at 5 kHz = a 1 kHz clock; base_motion"
                   " runs lead_samples ahead of it)", "steps", 1, 10000),
+        ParamSpec("spin_every", 25, "publish /amb/spin_speed (the tachometer) every N steps", "steps", 1, 100000),
         ParamSpec("state_block", 25, "samples per /amb_plant/state message (every sample is published; a block "
                   "costs the loop one DDS delivery per reader instead of one per sample)", "samples", 1, 200),
     ]  # fmt: skip
@@ -88,11 +91,13 @@ class PlantNode(RigNode):
         super().__init__("amb_plant", stop, specs())
         p, cfg = self.p, self.cfg
         self.model = build_structure(cfg)
-        self.stepper = PlantStepper(self.model, cfg, self.Ts)
+        self.limit = p["current_limit"]
+        self.rig = RigPlant(self.model, cfg, self.Ts, current_limit=self.limit)  # the core's one stepping code
+        self.stepper = self.rig.lin
         self.channels = self.model.channels
         self.air_gap = cfg.bearings.air_gap
-        self.max_y = p["max_displacement_ratio"] * self.air_gap
-        self.limit = p["current_limit"]
+        # with backup bearings the rotor lands on them and the run goes on; without, it stops at the gap multiple
+        self.max_y = np.inf if cfg.touchdown.nodes else p["max_displacement_ratio"] * self.air_gap
         self.sensor = SensorModel(p["noise_std"], p["quantization"], p["sensor_delay_samples"], p["noise_seed"])
         self.policy = CommandPolicy(len(self.channels), p["hold_samples"])
         self.x = self.initial_state(p["initial_displacement"])
@@ -116,6 +121,16 @@ class PlantNode(RigNode):
         self.clock_pub = self.create_publisher(Clock, m.CLOCK, qos) if self.mode == "lockstep" else None
         self.disp_codec = m.joint_state_codec(self.channels, ("position",))
         self.state_block = StateBlockWriter(self.model.dof_names, p["state_block"])
+        # actuator and filter states, spin angle: /amb_plant/aux_state (same block layout), /amb/spin_speed
+        self.aux_names = (*self.rig.labels[2 * self.model.n :], "spin")
+        self.aux_block = StateBlockWriter(self.aux_names, p["state_block"])
+        self.aux_row = np.zeros(2 * len(self.aux_names))
+        self.aux_pub = self.create_publisher(JointTrajectory, m.AUX_STATE, qos)
+        self.spin_pub = self.create_publisher(JointState, m.SPIN_SPEED, qos)
+        self.spin_codec = m.joint_state_codec(("spin",), ("position", "velocity"))
+        self.spin_every = p["spin_every"]
+        self.contact_pub = self.create_publisher(String, m.TOUCHDOWN, latched_qos())
+        self.contacts_sent = 0
         self.clock_codec = m.clock_codec()
         self.cmd_decoder = m.joint_state_decoder(self.channels, ("effort",))
         self.cmd_sub = self.create_subscription(JointState, m.CURRENT, self.on_command, qos, raw=True)
@@ -140,13 +155,13 @@ class PlantNode(RigNode):
 
     def initial_state(self, disk_v: float) -> np.ndarray:
         n = self.model.n
-        x = np.zeros(2 * n)
+        x = levitated_state(self.rig, self.cfg)  # at rest on the controller under gravity (zero without)
         if disk_v:
             fe = self.model.fe
             q_fe = np.zeros(fe.n)
             disk_node = self.cfg.disks[0].node if self.cfg.disks else self.cfg.n_nodes
             q_fe[dof_index(disk_node, 0)] = disk_v  # DOF 0 = v (lateral y)
-            x[:n] = self.model.from_fe(q_fe)
+            x[:n] += self.model.from_fe(q_fe)
         return x
 
     # -- receive handlers (called from the loops and from executor callbacks) -------------------------
@@ -216,7 +231,7 @@ class PlantNode(RigNode):
 
     # -- physics glue ----------------------------------------------------------------------------------
     def publish_outputs(self, k: int, stamp_ns: int) -> None:
-        y = self.stepper.output(self.x)
+        y = self.rig.displacement(self.x)
         np.maximum(self.peak, np.abs(y), out=self.peak)
         if self.peak.max() > self.max_y:
             j = int(np.argmax(self.peak))
@@ -224,31 +239,47 @@ class PlantNode(RigNode):
                 f"rotor left the bearing: |{self.channels[j]}| = {self.peak[j]:.3g} m = "
                 f"{self.peak[j] / self.air_gap:.3g} x air gap at t = {k * self.Ts:.6g} s (max_displacement_ratio)"
             )
-        self.disp_pub.publish(self.disp_codec.encode(stamp_ns, self.sensor.measure(y)))
+        self.disp_pub.publish(self.disp_codec.encode(stamp_ns, self.sensor.measure(self.rig.measure(self.x))))
         if self.mode == "realtime":
             self.sample_index[stamp_ns] = k
             self.sample_index.pop(stamp_ns - SAMPLE_MEMORY * self.Ts_ns, None)  # bounded memory (approximately)
             if len(self.sample_index) > 2 * SAMPLE_MEMORY:
                 self.sample_index = dict(list(self.sample_index.items())[-SAMPLE_MEMORY:])
         self.counters.published[m.DISPLACEMENT] += 1
-        self.publish_state(self.state_block.add(stamp_ns, self.x))
+        n2 = 2 * self.model.n
+        self.publish_state(self.state_block.add(stamp_ns, self.x[:n2]))
+        na = len(self.aux_names)
+        self.aux_row[: na - 1] = self.x[n2:]
+        self.aux_row[na - 1] = self.rig.phi
+        self.aux_row[-1] = self.rig.spin_speed()
+        self.publish_aux(self.aux_block.add(stamp_ns, self.aux_row))
+        if k % self.spin_every == 0:
+            self.spin_pub.publish(self.spin_codec.encode(stamp_ns, np.array([self.rig.phi, self.rig.spin_speed()])))
+            self.counters.published[m.SPIN_SPEED] += 1
+        if len(self.rig.contact.events) > self.contacts_sent:
+            self.publish_contacts()
 
     def publish_state(self, block: bytes | None) -> None:
         if block is not None:
             self.state_pub.publish(block)
             self.counters.published[m.STATE] += 1
 
-    def amplifier(self, current: np.ndarray) -> np.ndarray:
-        peak = float(np.max(np.abs(current)))
-        self.max_current = max(self.max_current, peak)
-        if peak > self.limit:
-            self.saturated += 1
-            return np.clip(current, -self.limit, self.limit)
-        return current
+    def publish_aux(self, block: bytes | None) -> None:
+        if block is not None:
+            self.aux_pub.publish(block)
+            self.counters.published[m.AUX_STATE] += 1
 
-    def advance(self, mats, current: np.ndarray) -> None:
-        E, G, g = mats
-        self.x = E @ self.x + G @ self.amplifier(current) + g
+    def publish_contacts(self) -> None:
+        """Each new touchdown contact, as it begins: one JSON line on /amb_plant/touchdown."""
+        for ev in self.rig.contact.events[self.contacts_sent :]:
+            self.contact_pub.publish(String(data=contact_json(ev)))
+            self.counters.published[m.TOUCHDOWN] += 1
+        self.contacts_sent = len(self.rig.contact.events)
+
+    def advance(self, rates: np.ndarray, current: np.ndarray) -> None:
+        """x_{k+1} = RigPlant.step(x_k, i_k, rates of sample k): the clamp, the effects and the ZOH (core)."""
+        self.x = self.rig.step(self.x, current, rates[:3], rates[3:])
+        self.saturated, self.max_current = self.rig.saturated, self.rig.max_command
         self.steps += 1
         if not np.isfinite(self.x).all():
             raise RunFailed(f"plant state is no longer finite at step {self.steps} (t = {self.steps * self.Ts:.6g} s)")
@@ -296,7 +327,10 @@ class PlantNode(RigNode):
             self.failure, code = str(exc), 3
         self.t_wall1 = time.monotonic()
         self.publish_state(self.state_block.flush())  # the samples of the last, shorter block
-        for pub in (self.disp_pub, self.state_pub, self.clock_pub):  # slow readers (recorder) get the last samples
+        self.publish_aux(self.aux_block.flush())
+        self.publish_contacts()
+        # slow readers (recorder) get the last samples
+        for pub in (self.disp_pub, self.state_pub, self.clock_pub, self.aux_pub, self.contact_pub):
             if pub is not None:
                 pub.wait_for_all_acked(Duration(seconds=2.0))
         self.waiter.close()
@@ -352,6 +386,8 @@ class PlantNode(RigNode):
                 "failure": self.failure,
             }
         )
+        out.update(contact_summary(self.rig.contact.events))
+        out["spin speed (rpm)"] = f"{self.rig.spin_speed() * 30 / np.pi:.6g}"
         for name, peak in zip(self.channels, self.peak, strict=True):
             out[f"peak {name} (m)"] = f"{peak:.6g}"
             out[f"peak {name} / air gap"] = f"{peak / self.air_gap:.6g}"
@@ -368,6 +404,28 @@ class PlantNode(RigNode):
             out["samples answered"] = str(self.sample_round_trip.count)
             out.update(self.sample_round_trip.summary("round trip"))
         return out
+
+
+def contact_json(ev) -> str:
+    """A touchdown event as one JSON object (t_s, node, penetration_m, peak_force_n; end_s once it ended)."""
+    import json
+
+    t0, node, pen, force, t1 = ev
+    return json.dumps({"t_s": t0, "node": node, "penetration_m": pen, "peak_force_n": force, "end_s": t1})
+
+
+def contact_summary(events) -> dict[str, str]:
+    """Diagnostics values of the touchdown contacts (shown in the run summary)."""
+    if not events:
+        return {"touchdown contacts": "0"}
+    first = events[0]
+    worst = max(events, key=lambda ev: ev[2])
+    return {
+        "touchdown contacts": str(len(events)),
+        "first touchdown": f"t = {first[0]:.6g} s at node {first[1]}",
+        "max penetration (m)": f"{worst[2]:.6g} (node {worst[1]}, t = {worst[0]:.6g} s)",
+        "peak contact force (N)": f"{max(ev[3] for ev in events):.6g}",
+    }
 
 
 def main(args: list[str] | None = None) -> None:

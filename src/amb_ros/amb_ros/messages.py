@@ -36,6 +36,9 @@ BASE_RATE_NAMES = ("omega_x", "omega_y", "omega_z")  # /base/rates joints: Omega
 DISPLACEMENT = "/amb/displacement"
 CURRENT = "/amb/current"
 STATE = "/amb_plant/state"
+AUX_STATE = "/amb_plant/aux_state"  # amplifier and sensor-filter states, spin angle (blocks, as STATE)
+SPIN_SPEED = "/amb/spin_speed"  # tachometer: JointState name ["spin"], position = angle, velocity = speed
+TOUCHDOWN = "/amb_plant/touchdown"  # std_msgs/String, one JSON object per backup-bearing contact
 MULTIPLIERS = "/stability/multipliers"
 UNSTABLE = "/stability/unstable"
 DIAGNOSTICS = "/diagnostics"

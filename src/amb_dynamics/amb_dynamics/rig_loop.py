@@ -1,0 +1,129 @@
+"""The digital loop on the rig plant, offline: the controller the node runs (``RigController``) closed around
+``RigPlant`` exactly as the lockstep node suite closes it (y_k measured, i_k = controller(y_k), x_{k+1} =
+plant.step(x_k, i_k, base rates of sample k)).  The Newmark simulation stays the independent check of the
+continuous analyses; this is the sampled-data loop with every real-rig effect.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .amb import DiscretePID, DiscretePIDCoefficients
+from .config import RotorConfig
+from .motion import BaseMotion
+from .rig_plant import RigPlant
+from .structure import StructuralModel
+
+
+class RigController:
+    """Discrete PID + static bias-current offset, clamped at current_limit; zero current from fail_at_s on.
+
+    The one implementation of the controller node's command (lockstep and offline alike).
+    """
+
+    def __init__(self, cfg: RotorConfig, gains, Ts: float, current_limit: float | None, fail_at_s: float | None):
+        coeffs = DiscretePIDCoefficients.from_gains(gains, Ts)
+        self.pid = DiscretePID(coeffs, 4, current_limit, delay=cfg.controller.delay_samples)
+        off = cfg.controller.bias_current_offset
+        self.offset = np.array(off, dtype=float) if off else None
+        self.limit = current_limit
+        self.fail_step = None if fail_at_s is None or fail_at_s < 0 else round(fail_at_s / Ts)
+        self.zero = np.zeros(4)
+
+    def failed(self, k: int) -> bool:
+        return self.fail_step is not None and k >= self.fail_step
+
+    def step(self, k: int, y: np.ndarray) -> np.ndarray:
+        """Current (A) answering sample k."""
+        if self.failed(k):
+            return self.zero
+        u = self.pid.step(y)
+        if self.offset is not None:
+            u = u + self.offset
+            if self.limit is not None:
+                u = np.clip(u, -self.limit, self.limit)
+        return u
+
+
+def levitated_state(plant: RigPlant, cfg: RotorConfig) -> np.ndarray:
+    """Plant state at rest on the controller under gravity (base level, no spin effects): zero without gravity.
+
+    Steady state of the digital PD (derivative zero, i = offset - kp y_m) with the bias-current offset:
+    (K_B + (ki kp + ks) Ba Ba^T) q = f_g + ki Ba offset; the amplifier state = i, the filter state = y.  The run
+    then starts levitated rather than dropping the overhung disk onto its shaft's elastic sag at t = 0.
+    """
+    model, lin = plant.model, plant.lin
+    x = np.zeros(plant.N)
+    if not plant.g:
+        return x
+    g = model.gains
+    off = np.array(cfg.controller.bias_current_offset or (0.0,) * 4, dtype=float)
+    K = model.mats["K_B"] + (g.ki * g.kp + g.ks) * model.Ba @ model.Ba.T
+    f = plant.S[:, -2:] @ np.array([-plant.g, 0.0]) + g.ki * model.Ba @ off
+    q = np.linalg.solve(K, f)
+    n = model.n
+    x[:n] = q
+    y = model.Ba.T @ q
+    if lin.layout.amp is not None:
+        x[lin.layout.amp] = off - g.kp * y
+    if lin.layout.sens is not None:
+        x[lin.layout.measured] = y
+    return x
+
+
+@dataclass
+class RigRun:
+    """Offline run on the rig plant (k = 0..steps)."""
+
+    t: np.ndarray  # (K+1,) s
+    x: np.ndarray  # (K+1, N) plant state
+    y: np.ndarray  # (K+1, 4) measured displacement (m)
+    displacement: np.ndarray  # (K+1, 4) true AMB displacement (m)
+    i: np.ndarray  # (K, 4) commanded current (A)
+    spin: np.ndarray  # (K+1,) spin speed (rad/s)
+    contacts: list  # touchdown events [t_start, node, max penetration, peak force, t_end]
+    labels: tuple
+
+
+def simulate_rig(
+    model: StructuralModel,
+    cfg: RotorConfig,
+    motion: BaseMotion,
+    steps: int,
+    x0: np.ndarray | None = None,
+    Ts: float | None = None,
+    fail_at_s: float | None = None,
+    current_limit: float | None = None,
+) -> RigRun:
+    """The lockstep loop offline with every configured effect (``RigPlant`` and ``RigController``).
+
+    Starts levitated (``levitated_state``, as the plant node does) plus ``x0`` ([q; q'] or the full plant state).
+    """
+    Ts = Ts if Ts is not None else 1.0 / cfg.controller.rate_hz
+    limit = cfg.controller.current_limit if current_limit is None else current_limit
+    plant = RigPlant(model, cfg, Ts, current_limit=limit)
+    ctrl = RigController(cfg, model.gains, Ts, limit, fail_at_s)
+    N = plant.N
+    t = np.arange(steps + 1) * Ts
+    Om, dOm = motion.angular_velocity(t)
+    Om, dOm = np.ascontiguousarray(Om.T), np.ascontiguousarray(dOm.T)
+    x = np.zeros((steps + 1, N))
+    x[0] = levitated_state(plant, cfg)
+    if x0 is not None:
+        x[0, : len(x0)] += x0
+    y = np.empty((steps + 1, 4))
+    disp = np.empty((steps + 1, 4))
+    cur = np.empty((steps, 4))
+    spin = np.empty(steps + 1)
+    for k in range(steps):
+        y[k] = plant.measure(x[k])
+        disp[k] = plant.displacement(x[k])
+        spin[k] = plant.spin_speed()
+        cur[k] = ctrl.step(k, y[k])
+        x[k + 1] = plant.step(x[k], cur[k], Om[k], dOm[k])
+    y[steps] = plant.measure(x[steps])
+    disp[steps] = plant.displacement(x[steps])
+    spin[steps] = plant.spin_speed()
+    return RigRun(t, x, y, disp, cur, spin, plant.contact.events, plant.labels)

@@ -1,0 +1,352 @@
+"""The real-rig plant over one sample: the one stepping code of the plant node and the offline sampled-data run.
+
+``RigPlant.step(x, i_cmd, Omega, dOmega)`` advances the plant state x = [q; q'; i_a; y_f(; y_f')]
+(:mod:`amb_dynamics.plant_dynamics`) over one sample Ts with the commanded current held, base rates held at their
+sample, the spin speed of the profile at t_k held:
+
+* linear part: exact ZOH, ``expm(Ts Aaug)`` of [[A_p(Omega, Phi), B_i, b_f, B_F, B_u], ...] cached per (rates,
+  spin) as PlantStepper caches its matrices; B_F are held external node forces (gravity, force noise, nonlinear
+  corrections), B_u the unbalance driven by a rotating oscillator [cos; sin](phi + Phi t), so that the
+  unbalance response is exact at constant speed;
+* unbalance: U Phi^2 (cos, sin)(phi + phase) at each disk in the base frame, plus the tangential term
+  U dPhi/dt (-sin, cos) during a ramp (the base rotation's share of the rotor's angle is neglected);
+* gravity g_B = R^T (0, -g, 0), R the base attitude integrated from the held rates (exact rotation of each step),
+  held over the step;
+* seeded force noise (per step, at the disk and AMB nodes) and sensor noise: blocks of BLOCK steps drawn from a
+  counter-based Philox generator keyed by (seed, block), so that any step's noise is the same for any caller;
+* synchronous sensor runout r (cos, sin)(phi + phase) added to the filtered measurement, with the noise;
+* amplifier: commanded current clamped at current_limit; the voltage limit as a slew-rate limit |di/dt| <= V/L
+  (with a current loop: the command is moved so that the initial slope is V/L, first order in Ts);
+* state-dependent forces (nonlinear bearing law minus its linearisation, touchdown contact): exponential
+  trapezoidal predictor-corrector (ETD2), second order in the sub-step h; the step is split into ``substeps``
+  sub-steps while a rotor node is near its backup bearing, one sub-step otherwise.
+
+With every effect off ``step`` is PlantStepper's x_{k+1} = E x + Gamma i + g (no clamping), so that RigPlant
+reproduces SampledLoop.simulate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .config import RotorConfig
+from .config_rig import disk_unbalance
+from .fe import dof_index
+from .rig_forces import RigForces
+from .sampled import CACHE_LIMIT, PlantStepper
+from .structure import StructuralModel
+from .system import coefficients_from_rates, forcing_from_rates
+
+BLOCK = 256  # steps of noise per Philox draw
+SPIN_GRID = 2.0 * math.pi / 30.0  # rad/s (2 rpm): during a ramp the step matrices are interpolated between these
+RPM = math.pi / 30.0
+
+
+@dataclass(frozen=True)
+class SpinProfile:
+    """The spin profile of config ``spin`` per step (scalars; spin.spin_state is the array form)."""
+
+    start: float  # rad/s
+    end: float  # rad/s
+    rate: float  # rad/s^2, signed
+
+    @classmethod
+    def from_config(cls, cfg: RotorConfig) -> SpinProfile:
+        sp = cfg.spin
+        if sp.profile == "ramp":
+            sign = 1.0 if sp.end_rpm > sp.start_rpm else -1.0
+            return cls(sp.start_rpm * RPM, sp.end_rpm * RPM, sign * sp.rate_rpm_s * RPM)
+        return cls(cfg.spin_rad_s, cfg.spin_rad_s, 0.0)
+
+    @property
+    def ramp_time(self) -> float:
+        """Duration of the ramp (s); 0 for a constant speed."""
+        return 0.0 if self.rate == 0.0 else (self.end - self.start) / self.rate
+
+    def speed(self, t: float) -> float:
+        """phi_dot (rad/s) at time t (s)."""
+        if self.rate == 0.0 or t >= self.ramp_time:
+            return self.end
+        return self.start + self.rate * t
+
+    def accel(self, t: float) -> float:
+        """phi_ddot (rad/s^2) at time t: the ramp rate while ramping, else 0."""
+        return self.rate if self.rate != 0.0 and t < self.ramp_time else 0.0
+
+
+class RigPlant:
+    """One-sample propagator of the real-rig plant (see module docstring).
+
+    Parameters
+    ----------
+    model, cfg : the structural model and its config
+    Ts : sample period (s)
+    forcing : base-motion forcing (docs/physics.md#forcing); None = cfg.base_forcing
+    current_limit : amplifier clamp (A); None = controller.current_limit
+    """
+
+    def __init__(
+        self,
+        model: StructuralModel,
+        cfg: RotorConfig,
+        Ts: float,
+        forcing: bool | None = None,
+        current_limit: float | None = None,
+    ):
+        self.lin = lin = PlantStepper(model, cfg, Ts, forcing)
+        self.model, self.cfg, self.Ts, self.n, self.N = model, cfg, Ts, model.n, lin.N
+        self.spin = SpinProfile.from_config(cfg)
+        self.forces = RigForces(model, cfg, lin.layout)
+        self.forces.set_rate(Ts)
+        n, fe = model.n, model.fe
+        Psi = model.basis if model.basis is not None else np.eye(fe.n)
+        Minv = sla.inv(model.M)
+        # held node forces: columns (y, z) of every force node, then gravity (y, z)
+        nodes = self.forces.nodes
+        S = np.zeros((fe.n, 2 * len(nodes) + 2))
+        for j, node in enumerate(nodes):
+            S[dof_index(node, 0), 2 * j], S[dof_index(node, 1), 2 * j + 1] = 1.0, 1.0
+        S[0::4, -2], S[1::4, -1] = 1.0, 1.0  # rigid unit translations along Y, Z
+        S[:, -2:] = fe.mats["M"] @ S[:, -2:]  # consistent load of a unit acceleration field
+        self.S = Psi.T @ S
+        self.BF = np.zeros((self.N, S.shape[1]))
+        self.BF[n : 2 * n] = Minv @ self.S
+        # unbalance per unit (cos, sin) of the spin angle: node force columns scaled later by Phi^2 and dPhi
+        self.unb = [(nodes.index(d.node), *disk_unbalance(d, cfg.shaft.density, cfg.max_speed_rpm)) for d in cfg.disks]
+        self.unb = [(j, U, ph) for j, U, ph in self.unb if U]
+        self.g = cfg.gravity.g if cfg.gravity.enabled else 0.0
+        act = cfg.actuator
+        self.slew = None if act.coil_inductance is None else act.supply_voltage / act.coil_inductance
+        self.limit = cfg.controller.current_limit if current_limit is None else current_limit
+        sens, dist = cfg.sensor, cfg.disturbances
+        self.runout = sens.runout
+        self.runout_phase = math.radians(sens.runout_phase_deg)
+        self.noise_y = sens.noise_rms
+        amb = set(cfg.bearings.nodes)
+        self.noise_f = np.repeat(
+            [
+                (dist.force_noise_rms_disk if node in self.forces.disk_nodes else 0.0)
+                + (dist.force_noise_rms_bearing if node in amb else 0.0)
+                for node in nodes
+            ],
+            2,
+        )
+        self.seed = dist.seed
+        self.linear_only = not (
+            self.unb or self.g or self.noise_f.any() or self.forces.active or self.slew or self.runout or self.noise_y
+        )
+        self._cache: dict[bytes, tuple] = {}
+        self._last: tuple = (None, None)
+        self._noise_block = -1
+        self._noise = np.zeros((BLOCK, 4 + self.noise_f.size))
+        self.reset()
+
+    # -- state of the effects -----------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Step counter, spin angle and base attitude back to t = 0."""
+        self.k = 0
+        self.phi = 0.0  # spin angle relative to the base (rad)
+        self.quat = np.array([0.0, 0.0, 0.0, 1.0])  # base -> inertial (x, y, z, w)
+        self.contact = self.forces.new_contact_log()
+        self._i_prev = np.zeros(4)
+        self.saturated = 0  # steps with the command clamped or slew-limited
+        self.max_command = 0.0  # largest |command| (A)
+
+    @property
+    def t(self) -> float:
+        return self.k * self.Ts
+
+    def spin_speed(self, k: int | None = None) -> float:
+        """Spin phi_dot at step k (rad/s)."""
+        return self.spin.speed(self.Ts * (self.k if k is None else k))
+
+    # -- matrices -----------------------------------------------------------------------------------------
+    def matrices(self, Omega: np.ndarray, dOmega: np.ndarray, spin: float, h: float | None = None):
+        """(E, Gamma_i, g, Gamma_F, Gamma_u) of a (sub-)step h (default Ts) at held rates and spin."""
+        h = self.Ts if h is None else h
+        key = np.concatenate([Omega, dOmega, (spin, h)]).tobytes()
+        hit = self._cache.get(key)
+        if hit is not None:
+            return hit
+        if self._last[0] == key:  # prepared ahead of the step while the cache is full
+            return self._last[1]
+        lin, N = self.lin, self.N
+        Om, dOm = np.asarray(Omega, float), np.asarray(dOmega, float)
+        c = coefficients_from_rates(Om, dOm, spin)
+        a = forcing_from_rates(Om, dOm, spin)
+        m = self.BF.shape[1]
+        size = N + 4 + 1 + m + 2
+        aug = np.zeros((size, size))
+        aug[:N, :N] = lin.Ap0 + np.tensordot(c[lin.Ap_idx], lin.Ap_stack, axes=1)
+        aug[:N, N : N + 4] = lin.Bp
+        aug[:N, N + 4] = lin.Bf @ a
+        aug[:N, N + 5 : N + 5 + m] = self.BF
+        o = N + 5 + m  # unbalance oscillator (cos, sin): d/dt = Phi [[0, -1], [1, 0]]
+        aug[o, o + 1], aug[o + 1, o] = -spin, spin
+        aug[:N, o : o + 2] = self._unbalance_columns(spin)
+        P = sla.expm(h * aug)
+        out = (P[:N, :N], P[:N, N : N + 4], P[:N, N + 4], P[:N, N + 5 : o], P[:N, o : o + 2])
+        if len(self._cache) < CACHE_LIMIT:
+            self._cache[key] = out
+        self._last = (key, out)
+        return out
+
+    def step_matrices(self, Omega: np.ndarray, dOmega: np.ndarray, spin: float, h: float | None = None):
+        """The matrices of a step at ``spin``: exact at a constant speed; during a ramp linear interpolation between
+        the cached matrices of the SPIN_GRID speeds around it (error O(SPIN_GRID^2); the speed-dependent terms
+        follow the speed at every step without an exponential per step)."""
+        if self.spin.rate == 0.0:
+            return self.matrices(Omega, dOmega, spin, h)
+        j = math.floor(spin / SPIN_GRID)
+        a = spin / SPIN_GRID - j
+        lo = self.matrices(Omega, dOmega, j * SPIN_GRID, h)
+        if a == 0.0:
+            return lo
+        hi = self.matrices(Omega, dOmega, (j + 1) * SPIN_GRID, h)
+        return tuple(u + a * (v - u) for u, v in zip(lo, hi, strict=True))
+
+    def _unbalance_columns(self, spin: float) -> np.ndarray:
+        """Plant input of the unbalance per unit (cos phi, sin phi), centrifugal part U Phi^2 (N x 2)."""
+        cols = np.zeros((self.N, 2))
+        for j, U, ph in self.unb:
+            f = U * spin * spin
+            # F_y = f cos(phi + ph), F_z = f sin(phi + ph) in terms of (cos phi, sin phi)
+            cols[:, 0] += self.BF[:, 2 * j] * f * math.cos(ph) + self.BF[:, 2 * j + 1] * f * math.sin(ph)
+            cols[:, 1] += -self.BF[:, 2 * j] * f * math.sin(ph) + self.BF[:, 2 * j + 1] * f * math.cos(ph)
+        return cols
+
+    # -- one step -----------------------------------------------------------------------------------------
+    def prepare(self, Omega: np.ndarray, dOmega: np.ndarray) -> None:
+        """Compute (cache) the matrices of the coming step ahead of it (the plant node, while it waits)."""
+        self.step_matrices(Omega, dOmega, self.spin_speed())
+
+    def applied_current(self, x: np.ndarray, i_cmd: np.ndarray) -> np.ndarray:
+        """Command after the current clamp and the voltage (slew) limit (i_cmd itself when neither acts)."""
+        i = i_cmd
+        if np.any(np.abs(i_cmd) > self.limit):
+            i = np.clip(i_cmd, -self.limit, self.limit)
+        if self.slew is None:
+            return i
+        amp = self.lin.layout.amp
+        if amp is not None:  # current loop: slope wa (i_c - i_a) limited to V/L
+            ia = x[amp]
+            span = self.slew / self.lin.dynamics.amplifier_rad_s
+            return np.clip(i, ia - span, ia + span)
+        return i  # ideal amplifier: the rate limit acts on the held current, see step()
+
+    def step(self, x: np.ndarray, i_cmd: np.ndarray, Omega: np.ndarray, dOmega: np.ndarray) -> np.ndarray:
+        """x_{k+1} from x_k, the held command (A) and the base rates of sample k; advances k, phi, attitude."""
+        spin = self.spin_speed()
+        i = self.applied_current(x, i_cmd)
+        self.max_command = max(self.max_command, float(np.max(np.abs(i_cmd))))
+        if i is not i_cmd and not np.array_equal(i, i_cmd):  # clamped or slew-limited this step
+            self.saturated += 1
+        if self.linear_only:
+            E, G, g, _, _ = self.step_matrices(Omega, dOmega, spin)
+            x_next = E @ x + G @ i + g
+        else:
+            x_next = self._step_effects(x, i, Omega, dOmega, spin)
+        self._advance_angles(Omega, dOmega, spin)
+        return x_next
+
+    def _step_effects(self, x, i, Omega, dOmega, spin):
+        if self.slew is not None and self.lin.layout.amp is None:
+            i = np.clip(i, self._i_prev - self.slew * self.Ts, self._i_prev + self.slew * self.Ts)
+        self._i_prev = i
+        held = np.zeros(self.BF.shape[1])
+        noise = self.noise_row(self.k)
+        held[:-2] += self.noise_f * noise[4:]
+        if self.g:
+            held[-2:] = _gravity_yz(self.quat, self.g)
+        accel = self.spin.accel(self.t)
+        if accel and self.unb:  # tangential unbalance force during a ramp, held over the step
+            for j, U, ph in self.unb:
+                a = self.phi + ph
+                held[2 * j] -= U * accel * math.sin(a)
+                held[2 * j + 1] += U * accel * math.cos(a)
+        cs = np.array([math.cos(self.phi), math.sin(self.phi)])
+        near = self.forces.near(x, self.Ts)
+        m = self.forces.substeps if near else 1
+        h = self.Ts / m
+        E, G, g, GF, Gu = self.step_matrices(Omega, dOmega, spin, h)
+        rot = np.array([[math.cos(spin * h), -math.sin(spin * h)], [math.sin(spin * h), math.cos(spin * h)]])
+        const = G @ i + g + GF @ held
+        GFn = GF[:, :-2]  # node-force columns (the last two are gravity)
+        for j in range(m):
+            base = E @ x + const + Gu @ cs
+            if self.forces.active:
+                t = self.t + j * h
+                f0 = self.forces.node_forces(x, i, spin, t, self.contact, near)
+                x_pred = base + GFn @ f0
+                f1 = self.forces.node_forces(x_pred, i, spin, t + h, None, near)
+                x = base + GFn @ (0.5 * (f0 + f1))
+            else:
+                x = base
+            cs = rot @ cs
+        return x
+
+    def _advance_angles(self, Omega, dOmega, spin):
+        accel = self.spin.accel(self.t)
+        self.phi = math.fmod(self.phi + spin * self.Ts + 0.5 * accel * self.Ts * self.Ts, 2 * math.pi)
+        if self.g and (np.any(Omega) or np.any(dOmega)):  # exact rotation of the midpoint rate over the step
+            w = np.asarray(Omega, float) + 0.5 * self.Ts * np.asarray(dOmega, float)
+            ang = float(np.linalg.norm(w)) * self.Ts
+            if ang > 0.0:
+                ax = w / np.linalg.norm(w) * math.sin(ang / 2)
+                dq = np.array([*ax, math.cos(ang / 2)])
+                self.quat = _qmul(self.quat, dq)
+                self.quat /= np.linalg.norm(self.quat)
+        self.k += 1
+
+    # -- measurement --------------------------------------------------------------------------------------
+    def measure(self, x: np.ndarray) -> np.ndarray:
+        """What the sensors report at this step (m): filtered displacement + runout + seeded noise."""
+        y = self.lin.output(x)
+        if self.runout:
+            a = self.phi + self.runout_phase
+            y = y + self.runout * np.array([math.cos(a), math.sin(a)] * 2)
+        if self.noise_y:
+            y = y + self.noise_y * self.noise_row(self.k)[:4]
+        return y
+
+    def noise_row(self, k: int) -> np.ndarray:
+        """Standard normal draws of step k: [sensor (4), force per node axis]; Philox keyed by (seed, k // BLOCK)."""
+        b = k // BLOCK
+        if b != self._noise_block:
+            gen = np.random.Generator(np.random.Philox(key=[self.seed, b]))
+            self._noise = gen.standard_normal(self._noise.shape)
+            self._noise_block = b
+        return self._noise[k % BLOCK]
+
+    def displacement(self, x: np.ndarray) -> np.ndarray:
+        """True AMB displacements (m)."""
+        return self.lin.displacement(x)
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return self.lin.labels
+
+
+def _gravity_yz(q: np.ndarray, g: float) -> tuple[float, float]:
+    """(Y, Z) components of g_B = R^T (0, -g, 0) for the base->inertial quaternion q = (x, y, z, w)."""
+    x, y, z, w = q
+    # second row of R (inertial Y in base axes) times -g: R^T e_Y = (R[1, 0], R[1, 1], R[1, 2])
+    return -g * (1.0 - 2.0 * (x * x + z * z)), -g * 2.0 * (y * z - w * x)
+
+
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Quaternion product a b, (x, y, z, w)."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ]
+    )
