@@ -23,6 +23,7 @@ import numpy as np
 
 from amb_bringup.supervisor import alive
 from amb_dynamics import BaseMotion, SampledLoop, build_structure, load_config, sampled_floquet
+from amb_dynamics.config import paper_config_path
 from amb_dynamics.estimator.mapfit import forcing_regressors
 from procs import spawn
 
@@ -79,11 +80,11 @@ def run_rig(tmp_path, venv_bin, args, timeout=180.0):
 
 # ---- the monitor's truth: the sampled-data model --------------------------------------------------------------
 def model_rho(amplitude: float, T: float) -> float:
-    """max|mu| of the sampled-data model of a pitch run of the seed rotor without current limit.
+    """max|mu| of the sampled-data model of a pitch run of the paper rotor without current limit.
 
     The digital loop's monodromy over T = N Ts (``sampled_floquet``), the truth the monitor's estimate must meet.
     """
-    cfg = load_config(None, ["controller.current_limit=1e9"])
+    cfg = load_config(paper_config_path(), ["controller.current_limit=1e9"])  # the rig tests run the paper loop
     motion = BaseMotion.single("pitch", amplitude, np.pi / T)
     return sampled_floquet(SampledLoop(build_structure(cfg), cfg, forcing=False), motion, T).max_abs
 

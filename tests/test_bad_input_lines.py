@@ -120,7 +120,7 @@ CASES = [
         ["two controller samples"],
     ),
     (
-        "floquet-sampled-1hz",
+        "floquet-sampled-slow-base",  # T/Ts = 31,416: three exact products of that length exceed the work bound
         _dyn,
         lambda t: [
             "floquet",
@@ -129,7 +129,7 @@ CASES = [
             "--amplitude",
             "0.3",
             "--frequency",
-            "6.283",
+            "0.5",
             "--controller",
             "sampled",
         ],

@@ -164,7 +164,7 @@ def test_sigterm_stops_within_a_second_without_orphans(tmp_path):
     ("extra", "needle"),
     [
         (["--scheduler", "tcp://127.0.0.1:{port}"], "cannot reach the Dask scheduler"),
-        (["--workers", "0"], "--workers must be >= 1"),
+        (["--workers", "0"], "--workers must be in 1..256"),
         (["--set", "controller.no_such_key=1"], "no_such_key"),
     ],
 )

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,6 +24,8 @@ pytestmark = pytest.mark.ros
 KP = 15648.2525  # the seed config's nominal kp (A/m); kI = 0 in the seed config
 TS_NS = 200_000  # 5 kHz
 Y = np.array([1e-4, -2e-4, 3e-5, 5e-5])
+
+PAPER = str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")  # the idealised loop
 
 
 def test_schedule_is_checked_before_the_run():
@@ -98,7 +101,14 @@ def test_param_set_rejects_bad_values_and_applies_good_ones_at_the_next_sample(c
         spin_until(future.done)
         return future.result().results[0]
 
-    cmd = [str(venv_bin / "amb-controller"), "--ros-args", "-p", "diagnostics_period_s:=0.2"]
+    cmd = [
+        str(venv_bin / "amb-controller"),
+        "--ros-args",
+        "-p",
+        "diagnostics_period_s:=0.2",
+        "-p",
+        f"config_file:={PAPER}",
+    ]
     with spawn(cmd, tmp_path / "controller.log") as ctl:
         spin_until(lambda: disp.get_subscription_count() >= 1 and client.service_is_ready())
         np.testing.assert_allclose(sample(0), -KP * Y, rtol=1e-12)  # y_-1 = y_0: u = -kp y
@@ -137,13 +147,13 @@ def test_param_set_rejects_bad_values_and_applies_good_ones_at_the_next_sample(c
 def offline_switched(steps: int, k_switch: int, new_kp: float, disk_v: float) -> np.ndarray:
     """Displacements y_0..y_steps of the offline sampled-data loop with kp switched before sample k_switch."""
     from amb_dynamics.amb import DiscretePIDCoefficients
-    from amb_dynamics.config import load_config
+    from amb_dynamics.config import load_config, paper_config_path
     from amb_dynamics.fe import dof_index
     from amb_dynamics.motion import BaseMotion
     from amb_dynamics.sampled import SampledLoop
     from amb_dynamics.structure import build_structure
 
-    cfg = load_config()
+    cfg = load_config(paper_config_path())  # the paper's loop: no bias offset, no added plant dynamics
     model = build_structure(cfg)
     q = np.zeros(model.fe.n)
     q[dof_index(cfg.disks[0].node, 0)] = disk_v
@@ -174,7 +184,8 @@ def test_param_at_switches_at_the_first_sample_after_T_and_is_in_the_bag(tmp_pat
     k_switch = 501  # first k with k * 0.2 ms >= 100.1 ms
     bag = tmp_path / "bag"
     code, summary, text = run_rig(tmp_path, venv_bin, [
-        "--duration", str(duration), "--initial-displacement", str(disk_v), "--no-monitor", "--bag", str(bag),
+        "--config", PAPER, "--duration", str(duration), "--initial-displacement", str(disk_v), "--no-monitor",
+        "--bag", str(bag),
         "--param-at", str(t_at), f"controller:proportional_gain={new_kp}"])  # fmt: skip
     assert code == 0, summary.get("errors") or text[-2000:]
     ctl = summary["nodes"]["controller"]["values"]
@@ -210,7 +221,7 @@ def test_monitor_margin_changes_the_running_flag_policy():
     """stability_monitor's runtime margin/hysteresis reach the running estimator's flag, which keeps its state."""
     from types import SimpleNamespace
 
-    from amb_dynamics.estimate import InstabilityFlag, VerdictPolicy
+    from amb_dynamics.estimator.fit import InstabilityFlag, VerdictPolicy
     from stability_monitor.pipeline import MonitorPipeline, MonitorSettings
 
     pl = MonitorPipeline(MonitorSettings(period=0.1))

@@ -81,7 +81,8 @@ def test_rig_refuses_in_under_5_s(capsys):
 def test_rig_force_warns_and_goes_on(capsys):
     from amb_bringup import rig
 
-    with pytest.raises(SystemExit) as exc:  # --duration 0 stops it right after the preflight
-        rig.main(["run", "--config", str(NEW_USER), "--duration", "0", "--force"])
-    assert "duration must be > 0" in str(exc.value.code)
-    assert "WARNING (--force)" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:  # --rt-priority with the monitor is refused right after the preflight
+        rig.main(["run", "--config", str(NEW_USER), "--duration", "1", "--force", "--rt-priority", "5"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "WARNING (--force)" in err and "--rt-priority" in err

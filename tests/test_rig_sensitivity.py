@@ -49,7 +49,7 @@ def test_measured_sensitivity_agrees_with_digital_loop_model(repo, venv_bin, tmp
     assert np.allclose(b["abs"], meas, rtol=1e-12) and b["max_rel_error_where_coherent"] < 0.05
     wrong = subprocess.run([str(venv_bin / "amb-bag"), "sensitivity", str(tmp_path / "bag"), "--axis", "amb5_z"],
                            capture_output=True, text=True, timeout=300)  # fmt: skip
-    assert wrong.returncode == 1 and wrong.stderr.count("\n") == 1 and "amb5_z" in wrong.stderr
+    assert wrong.returncode == 2 and wrong.stderr.count("\n") == 1 and "amb5_z" in wrong.stderr
 
 
 @pytest.mark.parametrize(

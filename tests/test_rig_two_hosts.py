@@ -17,6 +17,7 @@ import os
 import shutil
 import subprocess
 import time
+from pathlib import Path
 
 import pytest
 
@@ -29,7 +30,9 @@ pytestmark = [
 ]
 
 ADDR = {"a": "10.213.77.1", "b": "10.213.77.2"}
-RT = ["--mode", "realtime", "--motion", "none", "--set", "controller.rate_hz=1000", "--set", "modal_cutoff=800"]
+PAPER = str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")  # the link, not the rig physics
+RT = ["--mode", "realtime", "--motion", "none", "--set", "controller.rate_hz=1000", "--set", "modal_cutoff=800",
+      "--config", PAPER]  # fmt: skip
 # this test is about the link, not about deadlines on a shared 2-core machine: a late command is held for up to
 # 1 s and the controller waits 1 s for samples before it de-levitates (defaults: 10 samples, 0.1 s)
 LENIENT = ["--param", "plant:hold_samples=1000", "--param", "controller:sensor_timeout_s=1.0"]

@@ -22,6 +22,7 @@ class DiagnosticsCollector:
         self.node = rclpy.create_node("amb_rig")
         self.latest: dict[str, dict] = {}
         self.accept_pids = None  # callable returning the pids whose reports count (None: everyone's)
+        self.peer_names: set[str] = set()  # a split run: the other side's nodes, whose pids are on another host
         self.foreign: dict[str, int] = {}  # status name -> reports ignored (not from this run's processes)
         self.first_seen: dict[str, float] = {}
         self._lock = threading.Lock()
@@ -46,7 +47,8 @@ class DiagnosticsCollector:
     def _on_diag(self, msg: DiagnosticArray) -> None:
         with self._lock:
             for st in msg.status:
-                if not self._accepted(st.hardware_id):  # a replayed bag's, another run's: never this run's
+                own = st.name not in self.peer_names
+                if own and not self._accepted(st.hardware_id):  # a replayed bag's, another run's: never this run's
                     self.foreign[st.name] = self.foreign.get(st.name, 0) + 1
                     continue
                 values = {kv.key: kv.value for kv in st.values}

@@ -193,6 +193,10 @@ def run(args, cfg, lock) -> int:
         log_dir, child_env(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1"), tuple(fh.fileno() for fh in lock)
     )
     collector.accept_pids = lambda: {c.pid for c in sup.children}  # only this run's reports (not a replay's)
+    if args.no_plant or getattr(args, "only", None):  # a split run: the other side's nodes report from its host
+        collector.peer_names = (
+            {"amb_plant"} if args.no_plant else {"amb_controller", "base_motion", "stability_monitor"}
+        )
     errors: list[str] = []
     peer = split.PeerEnd(collector.node, collector, args)
     t0 = time.monotonic()
