@@ -146,8 +146,10 @@ class MonitorPipeline:
         except InputError as exc:
             self.note = str(exc)
             if "does not rotate" in self.note and t[-1] - t[0] >= self.s.static_wait:
-                self.note = f"static base: multipliers per {self.s.static_period:g} s"
-                return self._start(PeriodEstimate(self.s.static_period, self.s.static_period, "constant"))
+                # any window is a period of a static base: at least one sample per phase (slow loops, e.g. 1 kHz)
+                period = max(self.s.static_period, self.s.phases * self.sample_time)
+                self.note = f"static base: multipliers per {period:g} s"
+                return self._start(PeriodEstimate(period, period, "constant"))
             return []
         self.note = ""
         return self._start(pe)
