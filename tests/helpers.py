@@ -205,3 +205,28 @@ class Sniffer:
         self.thread.join(2)
         for s in self.socks:
             s.close()
+
+
+# ---- the command-line entry points, called in-process (bad-input and exit-code tests) ----------------------
+def cli_dyn(argv):
+    from amb_dynamics import cli
+
+    return cli.main(argv)
+
+
+def cli_bag(argv):
+    from amb_bag import cli
+
+    cli.main(argv)
+
+
+def cli_monitor(argv):
+    from stability_monitor import cli
+
+    cli.main(argv)
+
+
+def cli_rig(argv):
+    from amb_bringup import rig
+
+    rig.main(argv)

@@ -14,32 +14,13 @@ from pathlib import Path
 
 import pytest
 
+from helpers import cli_bag as _bag
+from helpers import cli_dyn as _dyn
+from helpers import cli_monitor as _monitor
+from helpers import cli_rig as _rig
+
 SAMPLE_BAG = Path(__file__).resolve().parents[1] / "bags" / "sample_pitch"
 PITCH = ["--motion", "pitch", "--amplitude", "0.3", "--frequency", "24.5"]
-
-
-def _dyn(argv):
-    from amb_dynamics import cli
-
-    return cli.main(argv)
-
-
-def _bag(argv):
-    from amb_bag import cli
-
-    cli.main(argv)
-
-
-def _monitor(argv):
-    from stability_monitor import cli
-
-    cli.main(argv)
-
-
-def _rig(argv):
-    from amb_bringup import rig
-
-    rig.main(argv)
 
 
 def _eight_byte_bag(tmp: Path) -> Path:

@@ -1,6 +1,7 @@
 """Optional action on instability: the controller switches to its safe gains on /stability/unstable (off by default)."""
 
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ pytestmark = pytest.mark.ros
 KP, KD = 15648.2525, 11.273957  # the seed config's nominal gains
 SAFE_KP = 20000.0  # the safe set of this test (kd: 0 = twice nominal)
 TS_NS = 200_000  # 5 kHz
+PAPER = str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")
 
 
 @pytest.fixture
@@ -56,7 +58,8 @@ def test_switch_to_safe_gains_on_unstable(rig_node, venv_bin, tmp_path, enabled)
             ex.spin_once(timeout_sec=0.05)
         return answers[k * TS_NS]
 
-    params = ["safe_gains_on_unstable:=" + str(enabled).lower(), f"safe_proportional_gain:={SAFE_KP}"]
+    params = ["safe_gains_on_unstable:=" + str(enabled).lower(), f"safe_proportional_gain:={SAFE_KP}",
+              f"config_file:={PAPER}"]  # the paper's loop: u = -kp y, no gravity feed-forward  # fmt: skip
     cmd = [str(venv_bin / "amb-controller"), "--ros-args", *[a for p in params for a in ("-p", p)]]
     with spawn(cmd, tmp_path / "controller.log") as ctl:
         end = time.monotonic() + 30

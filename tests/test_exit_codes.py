@@ -12,6 +12,11 @@ from pathlib import Path
 
 import pytest
 
+from helpers import cli_bag as _bag
+from helpers import cli_dyn as _dyn
+from helpers import cli_monitor as _monitor
+from helpers import cli_rig as _rig
+
 REPO = Path(__file__).resolve().parents[1]
 SAMPLE_BAG = REPO / "bags" / "sample_pitch"
 
@@ -43,30 +48,6 @@ def _exit(fn, argv) -> int:
     except SystemExit as exc:
         code = exc.code
     return 0 if code is None else code
-
-
-def _dyn(argv):
-    from amb_dynamics import cli
-
-    return cli.main(argv)
-
-
-def _bag(argv):
-    from amb_bag import cli
-
-    cli.main(argv)
-
-
-def _monitor(argv):
-    from stability_monitor import cli
-
-    cli.main(argv)
-
-
-def _rig(argv):
-    from amb_bringup import rig
-
-    rig.main(argv)
 
 
 @pytest.mark.parametrize(

@@ -2,6 +2,7 @@
 and against a time integration, and `amb-dynamics unbalance` (JSON schema, PNG, bad input)."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -133,7 +134,7 @@ def test_cli_json_schema_and_png(capsys, tmp_path):
             assert (s["phase_deg"][f"{node}_y"] - s["phase_deg"][f"{node}_z"]) % 360 == pytest.approx(90, abs=1e-6)
     png = tmp_path / "u" / "bode.png"
     code, out, _ = run_cli(capsys, "unbalance", "--speeds", "100:3000:200", "--out", str(png))
-    assert code == 0 and png.read_bytes()[:4] == b"\x89PNG" and "critical speeds (rpm): 23" in out
+    assert code == 0 and png.read_bytes()[:4] == b"\x89PNG" and re.search(r"critical speeds \(rpm\): .*232\.7", out)
 
 
 @pytest.mark.parametrize(

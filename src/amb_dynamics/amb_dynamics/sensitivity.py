@@ -91,14 +91,23 @@ def plant_state_space(model: StructuralModel, cfg: RotorConfig, speed_rpm: float
     """Open-loop plant, coil currents (A) -> AMB displacements (m), base at rest, spinning at ``speed_rpm``.
 
     The same generator as the plant node's ZOH step (:class:`amb_dynamics.sampled.PlantStepper`): negative
-    stiffness ks included, no controller.  States [q; q'].
+    stiffness ks included, no controller.  States [q; q'] and, when the config has them, the amplifier and
+    sensor-filter states; the output is what the controller reads (the sensor filter's output).
     """
     stepper = PlantStepper(model, _speed_cfg(cfg, speed_rpm), 1.0, forcing=False)
     zero = np.zeros(3)
     A = _generator(stepper, zero)
-    C = np.zeros((model.Ba.shape[1], A.shape[0]))
-    C[:, : model.n] = model.Ba.T
+    C = _measured_output(stepper, model, A.shape[0])
     return StateSpace(A, stepper.Bp.copy(), C, np.zeros((C.shape[0], stepper.Bp.shape[1])))
+
+
+def _measured_output(stepper: PlantStepper, model: StructuralModel, n_states: int) -> np.ndarray:
+    """What the controller reads: the sensor filter's output when the plant has one (Cm), else Ba^T q."""
+    if stepper.Cm is not None:
+        return np.array(stepper.Cm, dtype=float)
+    C = np.zeros((model.Ba.shape[1], n_states))
+    C[:, : model.n] = model.Ba.T
+    return C
 
 
 def _generator(stepper: PlantStepper, Omega: np.ndarray) -> np.ndarray:
@@ -112,8 +121,7 @@ def sampled_plant_state_space(
     """ZOH discretisation of :func:`plant_state_space` at sample period Ts (s): exactly the plant node's step."""
     stepper = PlantStepper(model, _speed_cfg(cfg, speed_rpm), Ts, forcing=False)
     E, Gam, _ = stepper.matrices(np.zeros(3), np.zeros(3))
-    C = np.zeros((model.Ba.shape[1], E.shape[0]))
-    C[:, : model.n] = model.Ba.T
+    C = _measured_output(stepper, model, E.shape[0])
     return StateSpace(E.copy(), Gam.copy(), C, np.zeros((C.shape[0], Gam.shape[1])), dt=Ts)
 
 
