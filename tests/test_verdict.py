@@ -94,7 +94,7 @@ def test_nothing_moved_says_why_and_saturation_is_reported():
 
 
 def test_hooks_touchdown_and_foreign_commands():
-    v = judge_verdict(_summary({"touchdowns": "2"}, {}, dict(STABLE_MON)), _args("--fail-on", "touchdown"))
+    v = judge_verdict(_summary({"touchdown contacts": "2"}, {}, dict(STABLE_MON)), _args("--fail-on", "touchdown"))
     assert v.result == "touchdown" and v.exit_code == EXIT_FAIL_ON
     v = judge_verdict(_summary({"foreign commands applied": "1"}, {}, dict(STABLE_MON)), _args())
     assert v.exit_code == EXIT_FAILED and "foreign commands" in v.line

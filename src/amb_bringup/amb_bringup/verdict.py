@@ -8,7 +8,7 @@ levitated), foreign commands applied, or ``--no-plant`` in lockstep with no rig 
 
 Inputs are the nodes' final /diagnostics values as collected in the summary (strings, as on the wire); keys a
 node does not report are simply not judged.  Hooks for keys other nodes are adding: the plant's
-``touchdowns`` (a touchdown result) and ``foreign commands applied`` (a failure).
+``touchdown contacts`` (a touchdown result) and ``foreign commands applied`` (a failure).
 """
 
 from __future__ import annotations
@@ -130,7 +130,7 @@ def _result(summary: dict, args) -> tuple[str, str, list[str]]:
     peaks = [p["m"] for p in (summary.get("peak_displacement") or {}).values() if p.get("m") is not None]
     peak = max(peaks) if peaks else None
     peak_text = f"; peak {peak:.3g} m = {peak / gap:.3g} x air gap" if peak is not None and gap else ""
-    touchdowns = _f(plant, "touchdowns")
+    touchdowns = _f(plant, "touchdown contacts")  # the plant node's count of backup-bearing contacts
     if touchdowns:
         return "touchdown", f"TOUCHDOWN ({touchdowns:.0f} contact events){peak_text}", warnings
     rho, period = _f(mon, "rho"), _f(mon, "period (s)")
