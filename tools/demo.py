@@ -23,8 +23,9 @@ OUT = REPO / "out"
 BIN = Path(sys.executable).parent
 CASE = ["--motion", "pitch", "--amplitude", "0.3", "--frequency", "24.5"]
 PAPER = ["--config", str(REPO / "config" / "seed_paper.yaml")]  # the paper's idealised rotor
-RAMP = ["--set", "spin.profile=ramp", "--set", "spin.start_rpm=500", "--set", "spin.end_rpm=2500",
-        "--set", "spin.rate_rpm_s=2500"]  # fmt: skip
+# through the first critical speeds (202 and 233 rpm: `amb-dynamics unbalance --out`)
+RAMP = ["--set", "spin.profile=ramp", "--set", "spin.start_rpm=100", "--set", "spin.end_rpm=400",
+        "--set", "spin.rate_rpm_s=100"]  # fmt: skip
 
 
 def step(title: str, cmd: list[str]) -> None:
@@ -79,8 +80,8 @@ def real_rig(dyn: str) -> None:
     sim = [dyn, "simulate", "--sampled", "--motion", "none"]
     step("real rig: unbalance orbits at both AMBs (G2.5, 1000 rpm), inside the clearance circles",
          [*sim, "--duration", "0.5", "--out", str(OUT / "rig_orbits.png")])  # fmt: skip
-    step("real rig: run-up 500 -> 2500 rpm at 2500 rpm/s through the first critical speed",
-         [*sim, *RAMP, "--duration", "0.9", "--out", str(OUT / "rig_runup.png")])  # fmt: skip
+    step("real rig: run-up 100 -> 400 rpm at 100 rpm/s through the first critical speeds",
+         [*sim, *RAMP, "--duration", "3.2", "--out", str(OUT / "rig_runup.png")])  # fmt: skip
     step("real rig: controller failure at 0.2 s, the rotor drops onto its touchdown bearings",
          [*sim, "--fail-at-s", "0.2", "--duration", "0.5", "--out", str(OUT / "rig_drop.png")])  # fmt: skip
     step("the same drop over DDS: amb-rig with --param controller:fail_at_s (lockstep, base at rest)",

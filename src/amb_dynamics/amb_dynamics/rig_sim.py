@@ -64,6 +64,12 @@ def plot_rig_run(run, channels, clearance, air_gap, out):
         a.set_ylabel("y (um)")
         a.set_title(f"orbit at {channels[2 * j][:-2]}")
         a.legend(loc="upper right", fontsize=7)
+        # the orbit itself is microns inside millimetre clearances: an inset at its own scale
+        inset = a.inset_axes((0.06, 0.06, 0.34, 0.34))
+        inset.plot(run.displacement[:, 2 * j + 1] * 1e6, run.displacement[:, 2 * j] * 1e6, lw=0.4)
+        inset.set_aspect("equal", adjustable="datalim")
+        inset.tick_params(labelsize=6)
+        inset.set_title("zoom (um)", fontsize=6)
     for c in range(4):
         ax[2].plot(run.t, run.displacement[:, c] * 1e6, lw=0.6, label=channels[c])
     ax[2].set_xlabel("t (s)")
