@@ -118,7 +118,7 @@ def test_hil_across_two_network_namespaces(tmp_path, venv_bin, two_hosts):
         # realtime: a sample that never arrived shows as a gap in the sample stamps (`skipped ticks`)
         answered, lost = int(ctl["samples answered"]), int(ctl["skipped ticks"])
         assert answered >= 1500  # at least 2 s at 1 kHz (the controller answers from its start)
-        # of the samples sent over the link, those answered: >= 99 % alone (docs/rig-bridge.md), 98.6 % once
+        # of the samples sent over the link, those answered: over 99 % alone, 98.6 % once
         # while the whole suite loaded this 2-core machine; the bound leaves room for that load
         assert answered / (answered + lost) >= 0.98
         commands_back = int(plant["samples answered"])  # commands that came back and answered a sample
