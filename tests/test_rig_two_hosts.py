@@ -116,10 +116,13 @@ def test_hil_across_two_network_namespaces(tmp_path, venv_bin, two_hosts):
         ctl = host_side["nodes"]["controller"]["values"]
         plant = plant_side["nodes"]["plant"]["values"]
         # realtime: a sample that never arrived shows as a gap in the sample stamps (`skipped ticks`)
-        answered, lost = int(ctl["samples answered"]), int(ctl["skipped ticks"])
+        # a gap in the controller's sample stamps is a sample the link lost or one the plant never sent (its own
+        # skipped ticks, late on a loaded machine): only the first kind is the link's
+        answered = int(ctl["samples answered"])
+        lost = max(int(ctl["skipped ticks"]) - int(plant["skipped ticks"]), 0)
         assert answered >= 1500  # at least 2 s at 1 kHz (the controller answers from its start)
-        # of the samples sent over the link, those answered: over 99 % alone, 98.6 % once
-        # while the whole suite loaded this 2-core machine; the bound leaves room for that load
+        # of the samples sent over the link, those answered: over 99 % alone, 98.6 % while the whole suite
+        # loaded this 2-core machine; the bound leaves room for that load
         assert answered / (answered + lost) >= 0.98
         commands_back = int(plant["samples answered"])  # commands that came back and answered a sample
         assert commands_back >= 0.99 * answered
