@@ -11,6 +11,7 @@ The physics tests have their own module, tests/physics_helpers.py.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -230,3 +231,21 @@ def cli_rig(argv):
     from amb_bringup import rig
 
     rig.main(argv)
+
+
+@contextlib.contextmanager
+def ros_node(name: str):
+    """A test's own rclpy node in its own context, with a single-threaded executor: yields (node, executor)."""
+    import rclpy
+
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node(name, context=ctx)
+    executor = rclpy.executors.SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    try:
+        yield node, executor
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)

@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import ros_node
 from procs import spawn
 
 pytestmark = pytest.mark.ros
@@ -18,19 +19,8 @@ PAPER = str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")
 
 @pytest.fixture
 def rig_node():
-    import rclpy
-
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx)
-    node = rclpy.create_node("safe_gain_test", context=ctx)
-    executor = rclpy.executors.SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
-    try:
-        yield node, executor
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.shutdown(context=ctx)
+    with ros_node("safe_gain_test") as pair:
+        yield pair
 
 
 @pytest.mark.parametrize("enabled", [True, False])

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import ros_node
 from procs import spawn
 
 pytestmark = pytest.mark.ros
@@ -50,19 +51,8 @@ def test_schedule_is_checked_before_the_run():
 
 @pytest.fixture
 def client_node():
-    import rclpy
-
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx)
-    node = rclpy.create_node("live_param_test", context=ctx)
-    executor = rclpy.executors.SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
-    try:
-        yield node, executor
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.shutdown(context=ctx)
+    with ros_node("live_param_test") as pair:
+        yield pair
 
 
 def test_param_set_rejects_bad_values_and_applies_good_ones_at_the_next_sample(client_node, venv_bin, tmp_path):
