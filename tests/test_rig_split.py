@@ -53,13 +53,13 @@ def test_contradictions_are_refused_with_one_line_and_exit_2(venv_bin, argv):
 
 class FakeGraph:
     def __init__(self):
-        self.count, self.diag = 0, None
+        self.count, self.diag, self.others = 0, None, {}
 
     def get_publishers_info_by_topic(self, topic):
         return [object()] * self.count
 
     def get(self, node):
-        return self.diag
+        return self.others.get(node, self.diag)
 
 
 def test_the_plant_side_ends_when_the_controller_has_left():
@@ -96,3 +96,17 @@ def test_the_host_side_in_lockstep_ends_when_the_plant_has_finished():
     # realtime host side and full rigs: amb-rig's own --duration ends the run
     assert not split.PeerEnd(graph, graph, parsed("--no-plant", "--mode", "realtime")).active
     assert not split.PeerEnd(graph, graph, parsed()).active
+
+
+def test_the_host_side_ends_when_a_plant_it_never_discovered_itself_has_gone():
+    """A short lockstep run can end before amb-rig's own node discovers the remote plant, and its final report can be
+    lost: the controller's answered samples prove the plant was there, so its absence now means it has gone."""
+    graph = FakeGraph()
+    peer = split.PeerEnd(graph, graph, parsed("--no-plant"))
+    graph.others["amb_controller"] = {"final": False, "message": "running", "values": {"samples answered": "0"}}
+    assert not peer.ended()  # no plant yet, and nothing answered: still starting
+    graph.others["amb_controller"]["values"]["samples answered"] = "501"
+    peer._next = 0.0
+    assert not peer.ended()  # seen now (through the controller); the publisher count is checked on the next poll
+    peer._next = 0.0
+    assert peer.ended() and "has no publisher" in peer.reason
