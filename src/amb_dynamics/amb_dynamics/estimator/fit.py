@@ -43,7 +43,7 @@ from .mapfit import (
     UNSTABLE,
     MapFit,
     forcing_complement,
-    forcing_regressors,
+    forcing_rank,
 )
 from .refine import refine_fit
 
@@ -101,9 +101,10 @@ def fit_period_map(
     ----------
     Z : np.ndarray, shape (m, J+1)
         Column j = stacked snapshots of period j (rows scaled to comparable units).
-    forcing : str or int
-        Model of the forcing term d_j: 'none', 'constant', 'alternating' (pitch, yaw) or a repeat count r
-        (see :func:`forcing_regressors`); each costs one snapshot pair per regressor.
+    forcing : str, int or array
+        Model of the forcing term d_j: 'none', 'constant', 'alternating' (pitch, yaw), a repeat count r, or
+        the sequences themselves (k, >= J) (see :func:`.mapfit.forcing_regressors`); each independent sequence
+        costs one snapshot pair.
     row_noise : (m,) array, float or None
         Measurement-noise std per row in the units of Z (None: noise-free, round-off floor only).
     method : 'ls', 'tls' or 'opt'
@@ -129,7 +130,7 @@ def fit_period_map(
     empty = np.zeros(0, dtype=complex)
     if pairs < 1:
         return MapFit(empty, np.inf, np.zeros(0), np.nan, pairs, 0, 0, 0, method, TOO_FEW)
-    free = pairs - forcing_regressors(forcing, pairs).shape[0]  # pairs left once the forcing is removed
+    free = pairs - forcing_rank(forcing, pairs)  # pairs left once the forcing is removed
     if free < 1 + min_dof:
         return MapFit(empty, np.inf, np.zeros(0), np.nan, pairs, 0, 0, 0, method, TOO_FEW)
     Q = forcing_complement(pairs, forcing)

@@ -80,12 +80,18 @@ class MapFit:
 FORCING_KINDS = ("none", "constant", "alternating")
 
 
-def forcing_regressors(forcing: str | int, pairs: int) -> np.ndarray:
+def forcing_regressors(forcing: str | int | np.ndarray, pairs: int) -> np.ndarray:
     """Sequences over the pair index j spanning the forcing term d_j, shape (k, pairs).
 
     'none': no forcing (f = 0, e.g. roll); 'constant': d; 'alternating': (-1)^j d (pitch and yaw, where
-    f(t + T) = -f(t) with T = pi/omega the period of A(t)); an int r: any d that repeats every r periods.
+    f(t + T) = -f(t) with T = pi/omega the period of A(t)); an int r: any d that repeats every r periods; an
+    array (k, >= pairs): the sequences themselves (their first ``pairs`` entries), e.g. a base-forcing model
+    stacked with the synchronous (spin-harmonic) sequences of :func:`synchronous_regressors`.
     """
+    if isinstance(forcing, np.ndarray):
+        if forcing.ndim != 2 or forcing.shape[1] < pairs or not np.isfinite(forcing).all():
+            raise InputError(f"forcing sequences of shape {forcing.shape} do not cover {pairs} pairs")
+        return forcing[:, :pairs]
     j = np.arange(pairs)
     if forcing == "none":
         return np.zeros((0, pairs))
@@ -100,8 +106,54 @@ def forcing_regressors(forcing: str | int, pairs: int) -> np.ndarray:
     raise InputError(f"unknown forcing model {forcing!r} (none, constant, alternating or a period count >= 1)")
 
 
-@lru_cache(maxsize=64)
-def forcing_complement(pairs: int, forcing: str | int) -> np.ndarray:
+def synchronous_regressors(angles: np.ndarray, harmonics: int, drift: bool) -> np.ndarray:
+    """Sequences over the columns spanning a response synchronous with the spin, shape (2 h (1 + drift), cols).
+
+    angles : (cols,) spin angle (rad) at the start of each column.  At constant spin speed the response to
+    unbalance and runout (forcing e^{i h phi(t)}) of a T-periodic loop is e^{i h phi(t)} p(t) with p T-periodic,
+    so column j carries Re(c_h e^{i h phi_j}): cos and sin of h phi_j per harmonic h span it exactly.  With
+    ``drift`` (the speed changes within the window) each harmonic also gets (j - mean j) / cols times them: an
+    amplitude and phase that change linearly over the window (a run-up through the response's frequency
+    dependence), to first order.
+    """
+    angles = np.asarray(angles, dtype=float)
+    rows = []
+    jc = (np.arange(angles.size) - 0.5 * (angles.size - 1)) / max(angles.size, 1)
+    for h in range(1, harmonics + 1):
+        c, s = np.cos(h * angles), np.sin(h * angles)
+        rows += [c, s]
+        if drift:
+            rows += [jc * c, jc * s]
+    return np.array(rows).reshape(len(rows), angles.size)
+
+
+def forcing_basis(forcing: str | int | np.ndarray, pairs: int) -> np.ndarray:
+    """The forcing sequences over ``pairs`` pairs; given sequences as an orthonormal basis of their span (rows
+    whose RMS is below 1e-9 of their largest entry, e.g. sin of whole turns, are round-off and dropped)."""
+    E = forcing_regressors(forcing, pairs)
+    if not isinstance(forcing, np.ndarray) or E.shape[0] == 0:
+        return E
+    rms = np.sqrt(np.mean(E * E, axis=1))
+    E = E[rms > 1e-9 * max(float(np.abs(E).max()), 1e-300)]
+    if E.shape[0] == 0:
+        return np.zeros((0, pairs))
+    return sla.orth((E / np.linalg.norm(E, axis=1, keepdims=True)).T, rcond=1e-8).T
+
+
+def forcing_rank(forcing: str | int | np.ndarray, pairs: int) -> int:
+    """Independent forcing sequences over ``pairs`` pairs (each costs one pair of the fit)."""
+    return forcing_basis(forcing, pairs).shape[0]
+
+
+def forcing_complement(pairs: int, forcing: str | int | np.ndarray) -> np.ndarray:
     """Orthonormal basis (pairs, pairs - k) of the sequences orthogonal to the forcing regressors."""
+    if isinstance(forcing, np.ndarray):
+        E = forcing_basis(forcing, pairs)
+        return np.eye(pairs) if E.shape[0] == 0 else sla.null_space(E)
+    return _named_complement(pairs, forcing)
+
+
+@lru_cache(maxsize=64)
+def _named_complement(pairs: int, forcing: str | int) -> np.ndarray:
     E = forcing_regressors(forcing, pairs)
     return np.eye(pairs) if E.shape[0] == 0 else sla.null_space(E)

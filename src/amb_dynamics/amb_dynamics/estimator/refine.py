@@ -23,7 +23,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .mapfit import MapFit, forcing_regressors
+from .mapfit import MapFit, forcing_basis
 
 MAX_ITER = 8
 REAL_TOL = 1e-9  # |Im mu| below this times |mu|: a real multiplier
@@ -97,7 +97,7 @@ class _Problem:
         return R, J.reshape(J.shape[0], -1).T
 
 
-def refine_fit(Z: np.ndarray, fit: MapFit, forcing: str | int) -> MapFit:
+def refine_fit(Z: np.ndarray, fit: MapFit, forcing: str | int | np.ndarray) -> MapFit:
     """Refine ``fit`` (a DMD fit of the snapshot columns Z (m, J+1)) by variable projection; see module doc.
 
     Returns a MapFit with the refined multipliers, the standard error of rho from the Jacobian, and method
@@ -111,7 +111,7 @@ def refine_fit(Z: np.ndarray, fit: MapFit, forcing: str | int) -> MapFit:
         return kept
     upper, real = split
     m, n = Z.shape
-    E = forcing_regressors(forcing, n)
+    E = forcing_basis(forcing, n)
     q = 2 * upper.size + real.size + E.shape[0]
     npar = 2 * upper.size + real.size
     dof = m * (n - q) - npar

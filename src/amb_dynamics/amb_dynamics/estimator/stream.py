@@ -20,7 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from .fit import InstabilityFlag, MapFit, VerdictPolicy, fit_period_map, forcing_regressors
+from .fit import InstabilityFlag, MapFit, VerdictPolicy, fit_period_map
+from .mapfit import forcing_regressors, synchronous_regressors
 from .refine import refine_fit
 
 SLOT_TOL = 1e-3  # a sample within this fraction of Ts of a phase time is taken as it is
@@ -58,6 +59,13 @@ class EstimatorConfig:
     adaptive_start : bool
         When the window's fit is unresolved, try windows that start later (fast modes seen only in the oldest
         periods then drop out) and take the first resolved one.
+    sync_harmonics : int
+        Spin harmonics whose synchronous response (unbalance, runout) is removed like the base forcing
+        (:func:`.mapfit.synchronous_regressors`): each sample then comes with its spin angle (``push(t, s,
+        angle)``); 0 = none.  Each harmonic costs two snapshot pairs, four while the speed changes.
+    sync_drift_tol : float
+        Relative change of the spin speed over the window above which the synchronous sequences get their
+        linear drift terms (a run-up or run-down).
     """
 
     period: float
@@ -72,12 +80,16 @@ class EstimatorConfig:
     scale_groups: tuple[int, ...] | None = None
     adaptive_start: bool = True
     policy: VerdictPolicy = field(default_factory=VerdictPolicy)
+    sync_harmonics: int = 0
+    sync_drift_tol: float = 1e-3
 
     def __post_init__(self):
         if not (np.isfinite(self.period) and np.isfinite(self.sample_time)) or self.sample_time <= 0:
             raise InputError("estimator: period and sample_time must be finite and positive")
         if self.period < 2 * self.sample_time:
             raise InputError(f"estimator: period {self.period:g} s is shorter than two samples")
+        if self.sync_harmonics < 0 or not (self.sync_drift_tol >= 0):
+            raise InputError("estimator: sync_harmonics and sync_drift_tol must be >= 0")
         if self.phases < 1 or self.window < 3 or self.updates_per_period < 1:
             raise InputError("estimator: phases and updates_per_period must be >= 1 and window >= 3")
         forcing_regressors(self.forcing, 1)  # validates the forcing model
@@ -136,6 +148,7 @@ class StreamingEstimator:
         self._stride = max(1, P // config.updates_per_period)
         cap = (config.window + 2) * P
         self._slots = np.zeros((cap, channels))
+        self._angles = np.zeros(cap)  # spin angle (rad) at each slot (synchronous regressors)
         self._noise = (
             None if config.noise_std is None else np.broadcast_to(np.asarray(config.noise_std, float), (channels,))
         )
@@ -160,13 +173,17 @@ class StreamingEstimator:
         P = self.cfg.phases
         return self._t0 + (g // P) * self.cfg.period + self._offsets[g % P]
 
-    def push(self, t: float, s: np.ndarray) -> Estimate | None:
-        """Add sample s (channels,) taken at time t (s); returns an Estimate when a refit happened."""
+    def push(self, t: float, s: np.ndarray, angle: float | None = None) -> Estimate | None:
+        """Add sample s (channels,) taken at time t (s), with the spin angle (rad) at t when the synchronous
+        response is modelled (``sync_harmonics``); returns an Estimate when a refit happened."""
         s = np.asarray(s, dtype=float)
         if s.shape != (self.channels,):
             raise InputError(f"estimator: sample has shape {s.shape}, expected ({self.channels},)")
         if not np.isfinite(s).all() or not np.isfinite(t):
             raise InputError("estimator: sample or time is not finite")
+        if self.cfg.sync_harmonics and (angle is None or not np.isfinite(angle)):
+            raise InputError("estimator: the synchronous model needs the spin angle of every sample")
+        angle = 0.0 if angle is None else float(angle)
         Ts = self.cfg.sample_time
         if self._t0 is None:
             self._t0 = float(t)
@@ -179,15 +196,17 @@ class StreamingEstimator:
             if ts > t + SLOT_TOL * Ts:
                 break
             if abs(ts - t) <= SLOT_TOL * Ts or not self._hist:
-                value = s
+                value, phi = s, angle
             else:
-                t1, s1 = self._hist[-1]
-                value = s1 + (s - s1) * ((ts - t1) / (t - t1))
+                t1, s1, a1 = self._hist[-1]
+                w = (ts - t1) / (t - t1)
+                value, phi = s1 + (s - s1) * w, a1 + (angle - a1) * w
             self._slots[self._g % self._slots.shape[0]] = value
+            self._angles[self._g % self._slots.shape[0]] = phi
             self._g += 1
             if self._g % self._stride == 0:
                 out = self._refit(float(t)) or out
-        self._hist.append((float(t), s.copy()))
+        self._hist.append((float(t), s.copy(), angle))
         return out
 
     def _noise_sample(self, t: float, s: np.ndarray) -> None:
@@ -218,6 +237,19 @@ class StreamingEstimator:
         return noise
 
     # ---- fitting -----------------------------------------------------------------------------------------
+    def window_forcing(self, cols: int) -> str | int | np.ndarray:
+        """The forcing model of a window of ``cols`` columns: the base forcing, and with ``sync_harmonics`` its
+        sequences stacked with the synchronous ones from the spin angles at the columns' first slots."""
+        cfg = self.cfg
+        if not cfg.sync_harmonics:
+            return cfg.forcing
+        P, cap = cfg.phases, self._slots.shape[0]
+        phi = self._angles[(self._g - cols * P + np.arange(cols) * P) % cap]
+        speed = np.diff(phi)
+        drift = speed.size > 1 and np.ptp(speed) > cfg.sync_drift_tol * max(np.abs(speed).max(), 1e-300)
+        sync = synchronous_regressors(phi, cfg.sync_harmonics, bool(drift))
+        return np.vstack([forcing_regressors(cfg.forcing, cols), sync])
+
     def window_matrix(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(Z, row_scale): the columns of the current window in time order, rows scaled; None if < 2 columns."""
         P, cap = self.cfg.phases, self._slots.shape[0]
@@ -246,35 +278,46 @@ class StreamingEstimator:
         if noise is not None and not noise.any():
             row_noise = None  # noise-free whole-sample snapshots: round-off floor only
         cfg = self.cfg
+        forcing = self.window_forcing(Z.shape[1])
         base = "ls" if cfg.method == "opt" else cfg.method  # the refinement runs once, on the chosen window
-        fit = fit_period_map(Z, cfg.forcing, row_noise, base, cfg.max_rank)
+        fit = fit_period_map(Z, forcing, row_noise, base, cfg.max_rank)
         # Modes that decay fast are seen only in the oldest columns; if they leave the model unresolved, a window
         # that starts later (without them) may resolve what remains: the slow modes that decide stability.
         drop, used = 1, 0
         while cfg.adaptive_start and fit.excited and not fit.resolved and Z.shape[1] - drop >= 4:
-            later = fit_period_map(Z[:, drop:], cfg.forcing, row_noise, base, cfg.max_rank)
+            later = fit_period_map(Z[:, drop:], _later(forcing, drop), row_noise, base, cfg.max_rank)
             if later.resolved:
                 fit, used = later, drop
                 break
             drop += 1
         if cfg.method == "opt":
-            fit = refine_fit(Z[:, used:], fit, cfg.forcing)
+            fit = refine_fit(Z[:, used:], fit, _later(forcing, used))
         verdict = self.flag.update(fit)
         est = Estimate(t, Z.shape[1] - 1, fit, verdict, self.flag.unstable, self.flag.confidence(fit))
         self.latest = est
         return est
 
 
-def estimate_series(t: np.ndarray, S: np.ndarray, config: EstimatorConfig) -> list[Estimate]:
-    """Run the streaming estimator over recorded samples t (K,), S (K, channels); all refits in order."""
+def _later(forcing: str | int | np.ndarray, drop: int) -> str | int | np.ndarray:
+    """The forcing model of a window whose first ``drop`` columns are left out."""
+    return forcing[:, drop:] if isinstance(forcing, np.ndarray) else forcing
+
+
+def estimate_series(
+    t: np.ndarray, S: np.ndarray, config: EstimatorConfig, angles: np.ndarray | None = None
+) -> list[Estimate]:
+    """Run the streaming estimator over recorded samples t (K,), S (K, channels) (and spin angles (K,) for the
+    synchronous model); all refits in order."""
     t = np.asarray(t, dtype=float)
     S = np.asarray(S, dtype=float)
     if S.ndim != 2 or S.shape[0] != t.shape[0]:
         raise InputError(f"samples must have shape (len(t), channels); got {S.shape} for {t.shape[0]} times")
+    if angles is not None and np.shape(angles) != t.shape:
+        raise InputError(f"spin angles must have shape {t.shape}, got {np.shape(angles)}")
     est = StreamingEstimator(config, S.shape[1])
     out = []
     for k in range(t.shape[0]):
-        e = est.push(t[k], S[k])
+        e = est.push(t[k], S[k], None if angles is None else angles[k])
         if e is not None:
             out.append(e)
     return out
