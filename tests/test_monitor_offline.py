@@ -244,3 +244,22 @@ def test_multiplier_message_layout():
     assert np.array_equal(multipliers_from_message(msg), mu[:2])
     empty = multipliers_message([], 8)
     assert empty.layout.dim[0].size == 0 and len(empty.data) == 0
+
+
+def test_recorded_motion_of_a_long_record():
+    """60 s of /base/imu at 1 kHz with the period off by 1e-7 (what up-crossings give): the phase error alone
+    would exceed the single-harmonic tolerance; the refined frequency reproduces the motion."""
+    from stability_monitor.analyze import recorded_motion
+
+    A, w, phase = 0.4, 22.3, 0.0
+    t = np.arange(60000) * 1e-3
+    W = np.zeros((t.size, 3))
+    W[:, 2] = A * w * np.cos(w * t + phase)
+    motion = recorded_motion(t, W, 2 * np.pi / w * (1 + 1e-7))
+    h = motion.harmonics[0]
+    assert h.axis == "pitch"
+    assert h.frequency == pytest.approx(w, rel=1e-9) and h.amplitude == pytest.approx(A, rel=1e-7)
+    with pytest.raises(InputError, match="not a single harmonic"):
+        W2 = W.copy()
+        W2[:, 2] += 0.01 * A * w * np.cos(3 * w * t)
+        recorded_motion(t, W2, 2 * np.pi / w)

@@ -9,7 +9,7 @@ recorded angular velocity (single-axis motions: axis, amplitude, frequency and p
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +40,7 @@ class Analysis:
     sample_spacing: float | None
     rejected: dict[str, int] = field(default_factory=dict)
     model: dict | None = None
+    notes: list[str] = field(default_factory=list)
 
     def to_dict(self, top: int = 6) -> dict:
         pl, last = self.pipeline, (self.estimates[-1] if self.estimates else None)
@@ -52,6 +53,8 @@ class Analysis:
             "period_s": pe.period if pe else None,
             "base_period_s": pe.base_period if pe else None,
             "forcing": pl.forcing or None,
+            "synchronous": pl.s.synchronous,
+            "notes": self.notes,
             "refits": len(self.estimates),
             "estimates": [e.to_dict(top) for e in self.estimates],
             "verdict": last.verdict if last else pl.state,
@@ -62,10 +65,17 @@ class Analysis:
         }
 
 
-def analyze_bag(path: Path, settings: MonitorSettings) -> Analysis:
-    """Run the monitor's pipeline over the bag at ``path``."""
+def analyze_bag(path: Path, settings: MonitorSettings, auto_synchronous: bool = False) -> Analysis:
+    """Run the monitor's pipeline over the bag at ``path`` (``auto_synchronous``: the synchronous model is
+    dropped, with a note, when the bag has no tachometer topic)."""
     files = bag_files(path)
     topics = bag_topics(files)
+    notes = []
+    if settings.synchronous and m.SPIN_SPEED not in topics:
+        if not auto_synchronous:
+            raise BagReadError(f"{path} has no {m.SPIN_SPEED} topic for the synchronous model: give --synchronous 0")
+        settings = replace(settings, synchronous=0)
+        notes.append(f"no {m.SPIN_SPEED} in the bag: the synchronous response (unbalance, runout) is not modelled")
     topic = m.DISPLACEMENT if settings.sensor_only else m.STATE
     if topic not in topics:
         hint = "" if settings.sensor_only else " (use --sensor-only for a bag with /amb/displacement only)"
@@ -75,6 +85,9 @@ def analyze_bag(path: Path, settings: MonitorSettings) -> Analysis:
         if m.IMU not in topics:
             raise BagReadError(f"{path} has no {m.IMU} topic to find the base period: give --period")
         wanted.append(m.IMU)
+    if settings.synchronous:
+        wanted.append(m.SPIN_SPEED)
+        spin_in = JointStateInput(("position", "velocity"))
     if settings.sensor_only:
         data_in = JointStateInput(("position",))
     elif topics[topic] == STATE_BLOCK_TYPE:
@@ -93,6 +106,12 @@ def analyze_bag(path: Path, settings: MonitorSettings) -> Analysis:
                 imu_t.append(t_ns * 1e-9)
                 imu_w.append(v[4:7].copy())
                 estimates.extend(pipeline.on_imu(t_ns * 1e-9, v[4:7]))
+                continue
+            if name == m.SPIN_SPEED:
+                t_ns, v = spin_in(raw)
+                if v.size != 2:
+                    raise m.Rejected(f"{v.size // 2} tachometer channels, expected 1")
+                estimates.extend(pipeline.on_spin(t_ns * 1e-9, float(v[0]), float(v[1])))
                 continue
             stamps, rows = data_in.samples(raw)
         except m.Rejected:
@@ -120,6 +139,7 @@ def analyze_bag(path: Path, settings: MonitorSettings) -> Analysis:
         np.asarray(imu_w).reshape(-1, 3),
         float(np.median(spacing)) if spacing else None,
         rejected,
+        notes=notes,
     )
 
 
@@ -129,13 +149,23 @@ def recorded_motion(t: np.ndarray, W: np.ndarray, base_period: float) -> BaseMot
     axis = int(np.argmax(peak))
     if any(peak[j] > SINGLE_AXIS_TOL * peak[axis] for j in range(3) if j != axis):
         raise InputError("the recorded base motion turns about more than one axis: no model value")
-    w = 2.0 * np.pi / base_period
-    # Omega = A w cos(w t + phase): least squares for (a, b) in a cos(w t) + b sin(w t)
-    basis = np.column_stack([np.cos(w * t), np.sin(w * t)])
-    (a, b), *_ = np.linalg.lstsq(basis, W[:, axis], rcond=None)
+    from scipy.optimize import minimize_scalar
+
+    def harmonic_fit(w: float):
+        # Omega = A w cos(w t + phase): least squares for (a, b) in a cos(w t) + b sin(w t)
+        basis = np.column_stack([np.cos(w * t), np.sin(w * t)])
+        ab, *_ = np.linalg.lstsq(basis, W[:, axis], rcond=None)
+        return float(np.sqrt(np.mean((basis @ ab - W[:, axis]) ** 2))), ab
+
+    # the period from up-crossings is good to ~1e-7; over a long record its phase error exceeds the tolerance,
+    # so the frequency is refined by least squares within +-1e-4 of it
+    w0 = 2.0 * np.pi / base_period
+    best = minimize_scalar(lambda w: harmonic_fit(w)[0], bounds=(w0 * (1 - 1e-4), w0 * (1 + 1e-4)),
+                           method="bounded", options={"xatol": 1e-13 * w0})  # fmt: skip
+    w = float(best.x) if harmonic_fit(best.x)[0] < harmonic_fit(w0)[0] else w0
+    rms, (a, b) = harmonic_fit(w)
     amp_w = float(np.hypot(a, b))
-    fit = basis @ [a, b]
-    if np.sqrt(np.mean((fit - W[:, axis]) ** 2)) > 1e-6 * amp_w:
+    if rms > 1e-6 * amp_w:
         raise InputError("the recorded base motion is not a single harmonic: no model value")
     kind = AXIS_OF_COMPONENT[axis]
     assert kind in AXES
@@ -145,7 +175,7 @@ def recorded_motion(t: np.ndarray, W: np.ndarray, base_period: float) -> BaseMot
 def model_value(analysis: Analysis, config_path: str | None, overrides: list[str]) -> dict:
     """Sampled-data model multipliers for the recorded base motion and the given rotor config."""
     from amb_dynamics.config import load_config
-    from amb_dynamics.floquet import sampled_floquet
+    from amb_dynamics.digital_floquet import estimate_point
     from amb_dynamics.sampled import SampledLoop
     from amb_dynamics.structure import build_structure
 
@@ -161,14 +191,17 @@ def model_value(analysis: Analysis, config_path: str | None, overrides: list[str
         if abs(ratio - round(ratio)) > 1e-6:
             notes.append(f"recorded sample spacing {analysis.sample_spacing:.9g} s is not a multiple of Ts = {Ts:g} s")
     h = motion.harmonics[0]
-    loop = SampledLoop(build_structure(cfg), cfg, Ts=Ts)
-    res = sampled_floquet(loop, motion, pe.period, snap=True)
+    # the period of A(t) for the refined frequency (the estimate's kind: base period or half of it)
+    period = pe.period * (2.0 * np.pi / pe.base_period) / h.frequency
+    loop = SampledLoop(build_structure(cfg), cfg, Ts=Ts, forcing=False)
+    res = estimate_point(loop, motion, period)  # exact for T/Ts = p/r, else interpolated with a bound
     return {
-        "rho": res.max_abs,
-        "multipliers": [[float(z.real), float(z.imag)] for z in res.multipliers[:6]],
+        "rho": res["max_abs_multiplier"],
+        "error_bound": res["error_bound"],
+        "multipliers": res["multipliers"][:6],
         "motion": {"kind": h.axis, "amplitude_rad": h.amplitude, "frequency_rad_s": h.frequency, "phase_rad": h.phase},
-        "method": res.method,
-        "notes": notes + list(res.notes),
+        "method": res["method"],
+        "notes": notes + list(res.get("notes", [])),
     }
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 from amb_dynamics.errors import AmbError
 from amb_dynamics.estimator.fit import METHODS
 
-from .pipeline import FORCING_CHOICES, MonitorSettings
+from .pipeline import FORCING_CHOICES, MonitorSettings, synchronous_harmonics
 
 ROWS = 20  # estimates shown in the human-readable table
 
@@ -31,6 +31,9 @@ def analyze_parser() -> argparse.ArgumentParser:
     p.add_argument("--sensor-only", action="store_true", help="use /amb/displacement instead of /amb_plant/state")
     p.add_argument("--period", type=float, default=0.0, help="period of A(t) in s (default: from /base/imu)")
     p.add_argument("--forcing", default="auto", choices=FORCING_CHOICES)
+    p.add_argument("--synchronous", type=int, default=-1, metavar="H", help="spin harmonics of the synchronous "
+                   "response removed with /amb/spin_speed's angle; -1 (default): 1 if --config has unbalance or "
+                   "runout and the bag has the tachometer")  # fmt: skip
     p.add_argument("--phases", type=int, default=32)
     p.add_argument("--window", type=int, default=16, help="periods in the moving window")
     p.add_argument("--updates-per-period", type=int, default=8)
@@ -63,10 +66,14 @@ def analyze(argv: list[str]) -> int:
             raise AmbError(f"--{name.replace('_', '-')} must be >= 1")
     from amb_dynamics.config import load_config
 
-    base_forcing = load_config(args.config, args.set).base_forcing
+    cfg = load_config(args.config, args.set)
+    if not -1 <= args.synchronous <= 8:
+        raise AmbError("--synchronous must be -1 (auto) or 0..8")
     settings = MonitorSettings(
         sensor_only=args.sensor_only,
-        base_forcing=base_forcing,
+        base_forcing=cfg.base_forcing,
+        gravity=cfg.gravity.enabled,
+        synchronous=synchronous_harmonics(args.synchronous, cfg),
         period=args.period,
         forcing=args.forcing,
         phases=args.phases,
@@ -79,7 +86,7 @@ def analyze(argv: list[str]) -> int:
         z=args.confidence_z,
         confirm=args.confirm,
     )
-    result = analyze_bag(args.bag, settings)
+    result = analyze_bag(args.bag, settings, auto_synchronous=args.synchronous < 0)
     if not args.no_model:
         result.model = try_model_value(result, args.config, args.set)
     plot_path = None
@@ -98,7 +105,10 @@ def analyze(argv: list[str]) -> int:
 def print_report(doc: dict, plot_path: Path | None) -> None:
     print(f"bag {doc['bag']}: {doc['samples']} samples of {doc['input_topic']}, {doc['refits']} refits")
     if doc["period_s"]:
-        print(f"period T = {doc['period_s']:.9g} s (base {doc['base_period_s']:.9g} s), forcing {doc['forcing']}")
+        print(f"period T = {doc['period_s']:.9g} s (base {doc['base_period_s']:.9g} s), forcing {doc['forcing']}, "
+              f"synchronous harmonics {doc['synchronous']}")  # fmt: skip
+    for note in doc["notes"]:
+        print(f"note: {note}")
     est = doc["estimates"]
     step = max(1, len(est) // ROWS)
     print(f"{'t (s)':>10} {'periods':>7} {'rho':>9} {'std':>8} {'rank':>4}  verdict")

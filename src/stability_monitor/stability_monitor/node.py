@@ -9,6 +9,9 @@ subscribes /amb/displacement       sensor_msgs/JointState: name = AMB channels, 
                                    (input:=displacement, sensor-only: what a real rig measures)
 subscribes /base/imu               sensor_msgs/Imu: angular_velocity = Omega (rad/s); only to find the base
                                    period (period_s:=0, the default)
+subscribes /amb/spin_speed         sensor_msgs/JointState: the tachometer, name [spin], position = spin angle
+                                   (rad), velocity = speed (rad/s); only with synchronous harmonics (auto: the
+                                   config has unbalance or runout)
 publishes  /stability/multipliers  std_msgs/Float64MultiArray, layout dims [k, 2] ("multiplier", "re_im"):
                                    data = [re_0, im_0, re_1, im_1, ...], largest |mu| first, k <= publish_count;
                                    k = 0 when the data do not identify the map.  One message per refit.
@@ -47,7 +50,7 @@ from amb_ros.runtime import run_node
 from amb_ros.scheduling import PRIORITIES, consumer_priority
 
 from .messages import JointStateInput, StateBlockInput, multipliers_message
-from .pipeline import FORCING_CHOICES, MonitorPipeline, MonitorSettings
+from .pipeline import FORCING_CHOICES, MonitorPipeline, MonitorSettings, synchronous_harmonics
 
 MULTIPLIERS, UNSTABLE = m.MULTIPLIERS, m.UNSTABLE
 INPUTS = ("state", "displacement")
@@ -64,6 +67,8 @@ def specs() -> list[ParamSpec]:
         ParamSpec("period_s", 0.0, "period of A(t); 0 = estimate the base period from /base/imu", "s", 0.0, 1e4),
         ParamSpec("forcing", "auto", "forcing model over periods; auto: none without the config's base_forcing, "
                   "else from /base/imu", choices=FORCING_CHOICES),
+        ParamSpec("synchronous", -1, "spin harmonics of the synchronous response (unbalance, runout) removed with "
+                  "the angle from /amb/spin_speed; -1 = auto: 1 when the config has unbalance or runout", "", -1, 8),
         ParamSpec("phases", 32, "phases sampled per period", "", 1, 4096),
         ParamSpec("window_periods", 16, "periods in the moving window", "", 3, 10000),
         ParamSpec("updates_per_period", 8, "refits per period", "", 1, 4096),
@@ -99,6 +104,7 @@ class MonitorNode(RigNode):
             period=p["period_s"],
             forcing=p["forcing"],
             base_forcing=self.cfg.base_forcing,
+            gravity=self.cfg.gravity.enabled,
             phases=p["phases"],
             window=p["window_periods"],
             updates_per_period=p["updates_per_period"],
@@ -111,6 +117,7 @@ class MonitorNode(RigNode):
             confirm=p["confirm"],
             static_wait=p["static_wait_s"],
             static_period=p["static_period_s"],
+            synchronous=synchronous_harmonics(p["synchronous"], self.cfg),
         )
         self.pipeline = MonitorPipeline(self.settings)  # scale groups set once the first sample names the channels
         if self.input == "displacement":
@@ -125,6 +132,11 @@ class MonitorNode(RigNode):
             self.imu_decoder = m.imu_decoder()
             self.imu_sub = self.create_subscription(Imu, m.IMU, self.on_imu, qos, raw=True)
             subs.append(self.imu_sub)
+        self.spin_sub = None
+        if self.settings.synchronous:
+            self.spin_in = JointStateInput(("position", "velocity"))
+            self.spin_sub = self.create_subscription(JointState, m.SPIN_SPEED, self.on_spin, qos, raw=True)
+            subs.append(self.spin_sub)
         self.mult_pub = self.create_publisher(Float64MultiArray, MULTIPLIERS, multipliers_qos())
         self.flag_pub = self.create_publisher(Bool, UNSTABLE, latched_qos())
         self.waiter = Waiter(self, subs)
@@ -148,6 +160,19 @@ class MonitorNode(RigNode):
             return
         t_ns, values = got
         self.publish(self.pipeline.on_imu(t_ns * 1e-9, values[4:7]))
+
+    def on_spin(self, raw: bytes) -> None:
+        got = self.counters.decode(m.SPIN_SPEED, self.spin_in, raw)
+        if got is None:
+            return
+        t_ns, values = got
+        if values.size != 2:
+            self.counters.reject(m.SPIN_SPEED, f"{values.size // 2} tachometer channels, expected 1")
+            return
+        try:
+            self.publish(self.pipeline.on_spin(t_ns * 1e-9, float(values[0]), float(values[1])))
+        except InputError as exc:
+            self.counters.reject(m.SPIN_SPEED, str(exc))
 
     def on_data(self, raw: bytes) -> None:
         got = self.counters.decode(self.topic, self.data_in.samples, raw)
@@ -191,7 +216,7 @@ class MonitorNode(RigNode):
             self.counters.published[UNSTABLE] += 1
 
     def drain(self) -> None:
-        for sub, handler in ((self.imu_sub, self.on_imu), (self.data_sub, self.on_data)):
+        for sub, handler in ((self.imu_sub, self.on_imu), (self.spin_sub, self.on_spin), (self.data_sub, self.on_data)):
             if sub is None:
                 continue
             while (raw := Waiter.take(sub)) is not None:
@@ -224,6 +249,8 @@ class MonitorNode(RigNode):
         if pl.samples == 0:
             return WARN, f"waiting for {self.topic}"
         est = pl.latest
+        if pl.estimator is None and pl.waiting_for_tach and not pl.tach_samples:
+            return WARN, f"waiting for the tachometer ({m.SPIN_SPEED}): {pl.waiting_for_tach} samples held"
         if pl.estimator is None:
             note = f" ({pl.note})" if pl.note else ""
             return WARN, f"{pl.state}: {pl.imu_samples} base-rate and {pl.samples} data samples{note}"
@@ -245,7 +272,8 @@ class MonitorNode(RigNode):
         out.update({"input": self.input, "unstable": str(self.flag).lower(), "samples lost": str(self.lost)})
         if pl.samples:
             out.update({"samples": str(pl.samples), "refits": str(pl.refits), "restarts": str(pl.restarts),
-                        "state": pl.state, "forcing": pl.forcing})  # fmt: skip
+                        "state": pl.state, "forcing": pl.forcing,
+                        "synchronous harmonics": str(self.settings.synchronous)})  # fmt: skip
             if pl.period_estimate is not None:
                 out["period (s)"] = f"{pl.period_estimate.period:.9g}"
                 out["base period (s)"] = f"{pl.period_estimate.base_period:.9g}"

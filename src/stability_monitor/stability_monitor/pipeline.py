@@ -9,6 +9,7 @@ stamps), never on wall time, so a replay gives the same output as the live run.
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -21,6 +22,29 @@ from amb_dynamics.estimator.stream import Estimate, EstimatorConfig, StreamingEs
 FORCING_CHOICES = ("auto", "none", "constant", "alternating", "two_periods")
 IMU_TRY_EVERY = 64  # base-rate samples between attempts to find the period (64 ms at the 1 kHz lockstep /base/imu)
 SAMPLE_TIME_FROM = 8  # sample spacings that fix the sample time (median)
+TACH_KEEP = 4096  # tachometer samples kept (the pending samples are always within the newest few)
+
+
+def synchronous_harmonics(requested: int, cfg) -> int:
+    """Spin harmonics to model: ``requested`` (>= 0), or for -1 (auto) 1 when the rotor config ``cfg`` has an
+    unbalance or a sensor runout (both once per revolution), else 0."""
+    if requested >= 0:
+        return int(requested)
+    from amb_dynamics.config_rig import disk_unbalance
+
+    unbalanced = any(disk_unbalance(d, cfg.shaft.density, cfg.max_speed_rpm)[0] != 0.0 for d in cfg.disks)
+    return int(unbalanced or cfg.sensor.runout != 0.0)
+
+
+def auto_forcing(motion_forcing: str, base_forcing: bool, gravity: bool) -> str:
+    """The forcing model of 'auto': the base motion's (``motion_forcing``, from the base rates) when the loop
+    carries its inertial load, plus gravity's (constant, and alternating under pitch and yaw) when it has one."""
+    kinds = {motion_forcing} - {"none"} if base_forcing else set()
+    if gravity:
+        kinds |= {"constant"} | ({"alternating"} if motion_forcing == "alternating" else set())
+    if len(kinds) > 1:
+        return "two_periods"
+    return kinds.pop() if kinds else "none"
 
 
 @dataclass(frozen=True)
@@ -36,17 +60,26 @@ class MonitorSettings:
     base_forcing : bool
         Whether the loop carries the inertial load of the base motion (the rotor config's ``base_forcing``; a
         real rig always does).
+    gravity : bool
+        Whether gravity loads the rotor (the config's ``gravity.enabled``): in the base frame it turns with the
+        base, a forcing that repeats every period of A(t) and, for pitch and yaw, also alternates; with 'auto'
+        it adds the constant sequence (and the alternating one: 'two_periods') to the base forcing model.
     noise_std : float
         Measurement-noise std of every channel (signal units); < 0 = estimate it from the data.
     static_wait : float
         Seconds of base rates without rotation after which the base is taken as static and ``static_period``
         is used (the loop is then time-invariant and any period gives its multipliers).
+    synchronous : int
+        Spin harmonics whose synchronous response (unbalance, runout) is removed, with the spin angle from the
+        tachometer (``on_spin``); 0 = none.  Each sample waits for the tachometer sample at or after its stamp
+        and takes the angle interpolated between the two around it (cubic Hermite in angle and speed).
     """
 
     sensor_only: bool = False
     period: float = 0.0
     forcing: str = "auto"
     base_forcing: bool = True
+    gravity: bool = False
     phases: int = 32
     window: int = 16
     updates_per_period: int = 8
@@ -60,6 +93,7 @@ class MonitorSettings:
     static_wait: float = 1.0
     static_period: float = 0.1
     max_buffer: int = 400_000
+    synchronous: int = 0
 
     def __post_init__(self):
         if self.forcing not in FORCING_CHOICES:
@@ -67,6 +101,8 @@ class MonitorSettings:
         if not (np.isfinite(self.period) and self.period >= 0):
             raise InputError(f"period must be >= 0 s (0 = estimate from the base rates), got {self.period}")
         VerdictPolicy(self.margin, self.hysteresis, self.z, self.confirm)  # validates
+        if not 0 <= self.synchronous <= 8:
+            raise InputError(f"synchronous harmonics must be 0..8, got {self.synchronous}")
 
 
 class MonitorPipeline:
@@ -88,10 +124,13 @@ class MonitorPipeline:
         self.samples = self.imu_samples = self.refits = 0
         self.flag_time: float | None = None
         self.latest: Estimate | None = None
-        self._buffer: list[tuple[float, np.ndarray]] = []
+        self._buffer: list[tuple[float, np.ndarray, float | None]] = []
         self._imu_t: list[float] = []
         self._imu_w: list[np.ndarray] = []
         self._last_t: float | None = None
+        self._tach: deque = deque(maxlen=TACH_KEEP)  # (t, angle, speed), increasing t
+        self._pending: deque = deque()  # samples waiting for the tachometer to reach their stamp
+        self.tach_samples = 0
 
     # ---- inputs ------------------------------------------------------------------------------------------
     def on_imu(self, t: float, omega: np.ndarray) -> list[Estimate]:
@@ -110,6 +149,48 @@ class MonitorPipeline:
             return self._try_period(len(self._imu_t))
         return []
 
+    def on_spin(self, t: float, angle: float, speed: float) -> list[Estimate]:
+        """One tachometer sample: spin angle (rad) and speed (rad/s) at time t (s); returns the refits of the
+        samples it releases (``synchronous``)."""
+        if not (np.isfinite(t) and np.isfinite(angle) and np.isfinite(speed)):
+            raise InputError("tachometer sample is not finite")
+        if self._tach and t <= self._tach[-1][0]:
+            if t != 0.0:
+                return []  # a repeat or an old sample
+            self._tach.clear()  # the plant restarted
+        self._tach.append((float(t), float(angle), float(speed)))
+        self.tach_samples += 1
+        out: list[Estimate] = []
+        while self._pending and self._pending[0][0] <= t:
+            ts, values = self._pending.popleft()
+            out.extend(self._accept(ts, values, self._angle_at(ts)))
+        return out
+
+    def _angle_at(self, t: float) -> float:
+        """Spin angle at t from the tachometer samples around it (at or before the first one: extrapolated)."""
+        tach = self._tach
+        k = len(tach) - 1
+        while k > 0 and tach[k - 1][0] >= t:
+            k -= 1
+        t1, a1, w1 = tach[k]
+        if k == 0 or t >= t1:
+            return a1 + w1 * (t - t1)
+        t0, a0, w0 = tach[k - 1]
+        h = t1 - t0
+        u = (t - t0) / h
+        # cubic Hermite: exact for a constant angular acceleration
+        return (
+            (2 * u**3 - 3 * u**2 + 1) * a0
+            + (u**3 - 2 * u**2 + u) * h * w0
+            + (-2 * u**3 + 3 * u**2) * a1
+            + (u**3 - u**2) * h * w1
+        )
+
+    @property
+    def waiting_for_tach(self) -> int:
+        """Samples held until the tachometer reaches their stamp."""
+        return len(self._pending)
+
     def on_sample(self, t: float, values: np.ndarray) -> list[Estimate]:
         """One snapshot (state [q; q'] or AMB displacements) at time t (s); returns the refits it caused."""
         if self._last_t is not None and t <= self._last_t:
@@ -119,11 +200,24 @@ class MonitorPipeline:
             self.reset()
         self._last_t = float(t)
         self.samples += 1
+        values = np.asarray(values, dtype=float).copy()
+        if not self.s.synchronous:
+            return self._accept(float(t), values, None)
+        if self._tach and self._tach[-1][0] >= t and not self._pending:
+            return self._accept(float(t), values, self._angle_at(t))
+        if len(self._pending) >= self.s.max_buffer:
+            raise InputError(f"no tachometer sample (/amb/spin_speed) for {self.s.max_buffer} samples: "
+                             "set synchronous to 0 or publish the spin angle")  # fmt: skip
+        self._pending.append((float(t), values))
+        return []
+
+    def _accept(self, t: float, values: np.ndarray, angle: float | None) -> list[Estimate]:
+        """A sample with its spin angle (None without the synchronous model): into the estimator or the buffer."""
         if self.estimator is not None:
-            return self._push(t, values)
+            return self._push(t, values, angle)
         if len(self._buffer) >= self.s.max_buffer:
             raise InputError(f"no base period after {self.s.max_buffer} samples: set the period parameter")
-        self._buffer.append((float(t), np.asarray(values, dtype=float).copy()))
+        self._buffer.append((t, values, angle))
         if self.sample_time is None and len(self._buffer) > SAMPLE_TIME_FROM:
             dt = np.diff([b[0] for b in self._buffer])
             self.sample_time = float(np.median(dt))
@@ -157,13 +251,14 @@ class MonitorPipeline:
     def _start(self, pe: PeriodEstimate) -> list[Estimate]:
         forcing = self.s.forcing
         if forcing == "auto":
-            forcing = pe.forcing if self.s.base_forcing else "none"
+            forcing = auto_forcing(pe.forcing, self.s.base_forcing, self.s.gravity)
         self.period_estimate = pe
         self._imu_t, self._imu_w = [], []
         cfg = EstimatorConfig(
             period=pe.period,
             sample_time=self.sample_time,
             forcing=2 if forcing == "two_periods" else forcing,
+            sync_harmonics=self.s.synchronous,
             phases=self.s.phases,
             window=self.s.window,
             updates_per_period=self.s.updates_per_period,
@@ -177,13 +272,13 @@ class MonitorPipeline:
         self.estimator = StreamingEstimator(cfg, channels)
         self.state = "running"
         out = []
-        for t, v in self._buffer:
-            out.extend(self._push(t, v))
+        for t, v, a in self._buffer:
+            out.extend(self._push(t, v, a))
         self._buffer = []
         return out
 
-    def _push(self, t: float, values: np.ndarray) -> list[Estimate]:
-        est = self.estimator.push(t, values)
+    def _push(self, t: float, values: np.ndarray, angle: float | None) -> list[Estimate]:
+        est = self.estimator.push(t, values, angle)
         if est is None:
             return []
         self.refits += 1
