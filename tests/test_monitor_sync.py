@@ -83,6 +83,16 @@ def test_estimates_do_not_depend_on_when_the_tachometer_arrives():
     assert abs(a[-1].fit.rho - np.exp(0.4 * 0.05)) < 1e-6
 
 
+def test_a_wrapped_tachometer_angle_gives_the_same_estimates():
+    """The plant's tachometer angle is in [0, 2 pi): unwrapped with the speed, nothing changes."""
+    t, S, tt, ta, tw = records(seconds=0.6)
+    _, exact = run_pipeline(t, S, (tt, ta, tw), "tach first")
+    _, wrapped = run_pipeline(t, S, (tt, np.mod(ta, 2 * np.pi), tw), "tach first")
+    assert len(exact) == len(wrapped) > 20
+    fitted = [(x.fit.rho, y.fit.rho) for x, y in zip(exact, wrapped, strict=True) if x.fit.excited]
+    assert len(fitted) > 10 and max(abs(p - q) for p, q in fitted) < 1e-9
+
+
 def test_samples_without_a_tachometer_are_held_and_then_refused():
     pl = MonitorPipeline(MonitorSettings(period=0.05, synchronous=1, max_buffer=100))
     for k in range(100):

@@ -71,7 +71,7 @@ class MonitorSettings:
         is used (the loop is then time-invariant and any period gives its multipliers).
     synchronous : int
         Spin harmonics whose synchronous response (unbalance, runout) is removed, with the spin angle from the
-        tachometer (``on_spin``); 0 = none.  Each sample waits for the tachometer sample at or after its stamp
+        tachometer (``on_spin``, unwrapped with the mean speed between its samples); 0 = none.  Each sample waits for the tachometer sample at or after its stamp
         and takes the angle interpolated between the two around it (cubic Hermite in angle and speed).
     """
 
@@ -158,6 +158,10 @@ class MonitorPipeline:
             if t != 0.0:
                 return []  # a repeat or an old sample
             self._tach.clear()  # the plant restarted
+        if self._tach:  # a tachometer may wrap its angle (the plant's is in [0, 2 pi)): unwrap it
+            t0, a0, w0 = self._tach[-1]
+            predicted = a0 + 0.5 * (w0 + speed) * (t - t0)
+            angle += 2.0 * np.pi * round((predicted - angle) / (2.0 * np.pi))
         self._tach.append((float(t), float(angle), float(speed)))
         self.tach_samples += 1
         out: list[Estimate] = []
