@@ -42,6 +42,15 @@ def build_summary(run: dict, children: list[Child], collector, errors: list[str]
             for key in plant
             if key.startswith("peak ") and key.endswith(" (m)")
         }
+        if "vibration window (s)" in plant:  # ISO 14839-2 grade of the run's last second (its end, not its start)
+            out["vibration"] = {
+                "window_s": _num(plant, "vibration window (s)"),
+                "axes": {
+                    key[10:-4]: {"m": _num(plant, key), "zone": plant.get(f"vibration zone {key[10:-4]}", "-")}
+                    for key in plant
+                    if key.startswith("vibration ") and key.endswith(" (m)")
+                },
+            }
     ctl = nodes.get("controller", {}).get("values", {})
     if ctl:
         keys = ("samples answered", "samples lost", "saturated samples", "max current (A)", "ticks",
@@ -74,6 +83,10 @@ def format_summary(s: dict) -> str:
         for ch, p in s["peak_displacement"].items():
             flag = "  EXCEEDS AIR GAP" if (p["air_gap_ratio"] or 0) > 1 else ""
             lines.append(f"    {ch:<8} {p['m']:.4g} m   {p['air_gap_ratio']:.4g} x gap{flag}")
+    if s.get("vibration"):
+        v = s["vibration"]
+        axes = ", ".join(f"{ch} {a['m']:.3g} m zone {a['zone']}" for ch, a in v["axes"].items())
+        lines.append(f"  vibration over the last {v['window_s']:.3g} s (ISO 14839-2 vs C_min): {axes}")
     if s.get("controller"):
         c = s["controller"]
         text = ", ".join(f"{k} {v:g}" for k, v in c.items() if v is not None)

@@ -148,7 +148,9 @@ def _result(summary: dict, args) -> tuple[str, str, list[str]]:
         why = summary.get("nodes", {}).get("monitor", {}).get("message") or "no displacement"
         if peak == 0.0:
             why = "every displacement stayed 0 (base at rest and no --initial-displacement?)"
-        return "nothing-moved", f"nothing moved: {why}", warnings
+            return "nothing-moved", f"nothing moved: {why}", warnings
+        # the rotor vibrates (unbalance, runout, noise, forced response) but no transient shows above the noise
+        return "nothing-moved", f"no stability estimate: {why}" + peak_text, warnings
     if rho is not None:
         return "stable", f"stable: rho = {rho:.4f}" + peak_text, warnings
     if ctl or plant:

@@ -82,16 +82,62 @@ def vibration_zones(
 
     With ``c_min`` None there is no zone, and each entry says why in one line.
     """
-    out = {}
-    for axis, y in displacements.items():
-        d = displacement_measure(y, measure)
-        if c_min is None:
-            out[axis] = VibrationZone(
-                axis, d, measure, None, None, "no zone: iso14839.touchdown_clearance (C_min) is not set"
-            )
-            continue
-        if not c_min > 0:
-            raise InputError(f"iso14839.touchdown_clearance must be > 0 m (got {c_min})")
-        ratio = d / c_min
-        out[axis] = VibrationZone(axis, d, measure, ratio, zone_of(ratio, limits_ratio))
-    return out
+    return {axis: _zone(axis, displacement_measure(y, measure), measure, c_min, limits_ratio)
+            for axis, y in displacements.items()}  # fmt: skip
+
+
+def _zone(axis: str, d: float, measure: str, c_min: float | None, limits) -> VibrationZone:
+    if c_min is None:
+        return VibrationZone(axis, d, measure, None, None, "no zone: iso14839.touchdown_clearance (C_min) is not set")
+    if not c_min > 0:
+        raise InputError(f"iso14839.touchdown_clearance must be > 0 m (got {c_min})")
+    return VibrationZone(axis, d, measure, d / c_min, zone_of(d / c_min, limits))
+
+
+def clearance_of(cfg) -> float | None:
+    """C_min of a rotor config: ``iso14839.touchdown_clearance``, else the touchdown bearings' clearance, else
+    None (no vibration zone)."""
+    if cfg.iso14839.touchdown_clearance is not None:
+        return float(cfg.iso14839.touchdown_clearance)
+    return float(cfg.touchdown.clearance) if cfg.touchdown.clearance is not None else None
+
+
+class TrailingPeaks:
+    """Vibration of a sample stream over the trailing ``window_s``: per channel the largest and smallest value of
+    the last completed blocks and the current one (block = window / ``blocks``), so the end of a run is graded
+    without its start-up transient.  ``values()`` gives (zero_peak, peak_to_peak) per channel (m)."""
+
+    def __init__(self, channels: int, Ts: float, window_s: float = 1.0, blocks: int = 4):
+        if not (Ts > 0 and window_s > 0 and blocks >= 1):
+            raise InputError("trailing peaks: Ts and window_s must be > 0 and blocks >= 1")
+        self.block = max(1, round(window_s / blocks / Ts))
+        self.hi = np.full((blocks + 1, channels), -np.inf)
+        self.lo = np.full((blocks + 1, channels), np.inf)
+        self.n = 0
+
+    def add(self, y: np.ndarray) -> None:
+        row = (self.n // self.block) % self.hi.shape[0]
+        if self.n % self.block == 0:  # a new block replaces the oldest
+            self.hi[row], self.lo[row] = -np.inf, np.inf
+        np.maximum(self.hi[row], y, out=self.hi[row])
+        np.minimum(self.lo[row], y, out=self.lo[row])
+        self.n += 1
+
+    def values(self) -> tuple[np.ndarray, np.ndarray]:
+        hi, lo = self.hi.max(axis=0), self.lo.min(axis=0)
+        if self.n == 0:
+            return np.zeros_like(hi), np.zeros_like(hi)
+        return np.maximum(np.abs(hi), np.abs(lo)), hi - lo
+
+    @property
+    def covered(self) -> int:
+        """Samples the values cover (the whole stream while it is shorter than the window)."""
+        return min(self.n, (self.hi.shape[0] - 1) * self.block + self.n % self.block)
+
+    def zones(self, channels, c_min: float | None, limits, measure: str = "zero_peak") -> dict[str, VibrationZone]:
+        """ISO 14839-2 zone per channel of the trailing window (see :func:`vibration_zones`)."""
+        zero_peak, p2p = self.values()
+        d = zero_peak if measure == "zero_peak" else p2p
+        if measure not in ("zero_peak", "peak_to_peak"):
+            raise InputError(f"vibration measure must be zero_peak or peak_to_peak (got {measure!r})")
+        return {ch: _zone(ch, float(v), measure, c_min, limits) for ch, v in zip(channels, d, strict=True)}

@@ -38,6 +38,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 import amb_ros.messages as m
 from amb_dynamics.fe import dof_index
+from amb_dynamics.iso14839 import TrailingPeaks, clearance_of
 from amb_dynamics.rig_loop import levitated_state
 from amb_dynamics.rig_plant import RigPlant
 from amb_dynamics.structure import build_structure
@@ -103,6 +104,9 @@ class PlantNode(RigNode):
         self.x = self.initial_state(p["initial_displacement"])
         self.steps = 0
         self.peak = np.zeros(len(self.channels))
+        self.trailing = TrailingPeaks(len(self.channels), self.Ts)  # the end of the run, without its start
+        self.c_min = clearance_of(cfg)
+        self.iso = cfg.iso14839
         self.saturated = 0
         self.max_current = 0.0
         self.failure = ""
@@ -233,6 +237,7 @@ class PlantNode(RigNode):
     def publish_outputs(self, k: int, stamp_ns: int) -> None:
         y = self.rig.displacement(self.x)
         np.maximum(self.peak, np.abs(y), out=self.peak)
+        self.trailing.add(y)
         if self.peak.max() > self.max_y:
             j = int(np.argmax(self.peak))
             raise RunFailed(
@@ -367,6 +372,16 @@ class PlantNode(RigNode):
         text = f"{state}: {self.steps} steps" + ("; " + "; ".join(notes) if notes else "")
         return (WARN if notes else OK), text
 
+    def vibration_values(self) -> dict[str, str]:
+        """ISO 14839-2 grade of the trailing second (amb_dynamics.iso14839): measure, ratio to C_min, zone."""
+        iso = self.iso
+        zones = self.trailing.zones(self.channels, self.c_min, iso.vibration_zone_limits, iso.vibration_measure)
+        out = {"vibration window (s)": f"{self.trailing.covered * self.Ts:.6g}"}
+        for name, z in zones.items():
+            out[f"vibration {name} (m)"] = f"{z.displacement_m:.6g}"
+            out[f"vibration zone {name}"] = z.zone or "-"
+        return out
+
     def values(self) -> dict[str, str]:
         wall = (self.t_wall1 or time.monotonic()) - self.t_wall0 if self.t_wall0 else 0.0
         out = self.common_values()
@@ -391,6 +406,7 @@ class PlantNode(RigNode):
         for name, peak in zip(self.channels, self.peak, strict=True):
             out[f"peak {name} (m)"] = f"{peak:.6g}"
             out[f"peak {name} / air gap"] = f"{peak / self.air_gap:.6g}"
+        out.update(self.vibration_values())
         if self.mode == "lockstep":
             out["duplicate commands"] = str(self.duplicates)
             out["start wait (s)"] = f"{self.start_wait_s:.3f}"

@@ -71,8 +71,9 @@ class MonitorSettings:
         is used (the loop is then time-invariant and any period gives its multipliers).
     synchronous : int
         Spin harmonics whose synchronous response (unbalance, runout) is removed, with the spin angle from the
-        tachometer (``on_spin``, unwrapped with the mean speed between its samples); 0 = none.  Each sample waits for the tachometer sample at or after its stamp
-        and takes the angle interpolated between the two around it (cubic Hermite in angle and speed).
+        tachometer (``on_spin``, unwrapped with the mean speed between its samples); 0 = none.  Each sample
+        waits for the tachometer sample at or after its stamp and takes the angle interpolated between the two
+        around it (cubic Hermite in angle and speed).
     """
 
     sensor_only: bool = False

@@ -1,0 +1,39 @@
+"""ISO 14839-2 grade of the end of a run: the trailing window's vibration, not the start-up transient's."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from amb_dynamics.config import load_config, paper_config_path
+from amb_dynamics.errors import InputError
+from amb_dynamics.iso14839 import TrailingPeaks, clearance_of, vibration_zones
+
+
+def test_trailing_window_forgets_the_start():
+    Ts = 1e-3
+    t = np.arange(5000) * Ts
+    # a 200 um start transient that decays in ~0.3 s, then a 30 um / 10 um steady vibration
+    y = np.column_stack([200e-6 * np.exp(-t / 0.05) + 30e-6 * np.sin(60 * t), 10e-6 * np.cos(60 * t) + 5e-6])
+    tp = TrailingPeaks(2, Ts, window_s=1.0, blocks=4)
+    for row in y:
+        tp.add(row)
+    zero_peak, p2p = tp.values()
+    tail = y[-tp.covered :]
+    assert 1000 <= tp.covered <= 1250  # the last 1 s and the block in progress
+    assert np.allclose(zero_peak, np.abs(tail).max(axis=0)) and np.allclose(p2p, np.ptp(tail, axis=0))
+    assert zero_peak[0] == pytest.approx(30e-6, rel=1e-3) and zero_peak[1] == pytest.approx(15e-6, rel=1e-3)
+    # the whole record (vibration_zones on all samples) still sees the transient
+    whole = vibration_zones({"a": y[:, 0]}, 1e-4, (0.3, 0.4, 0.5))["a"]
+    assert whole.zone == "D" and whole.displacement_m > 150e-6
+    end = tp.zones(("a", "b"), 1e-4, (0.3, 0.4, 0.5))
+    assert end["a"].zone == "A" and end["a"].ratio == pytest.approx(0.30, rel=1e-2)  # on the A/B boundary
+    assert tp.zones(("a", "b"), 1e-4, (0.3, 0.4, 0.5), "peak_to_peak")["a"].zone == "D"  # 60 um p-p = 0.6 C_min
+    with pytest.raises(InputError):
+        tp.zones(("a", "b"), 1e-4, (0.3, 0.4, 0.5), "rms")
+
+
+def test_c_min_defaults_to_the_touchdown_clearance():
+    assert clearance_of(load_config(None)) == pytest.approx(1.0e-3)  # the real rig's backup bearings
+    assert clearance_of(load_config(None, ["iso14839.touchdown_clearance=8e-4"])) == pytest.approx(8e-4)
+    assert clearance_of(load_config(paper_config_path())) is None  # the paper's rotor has none: no zone
