@@ -52,3 +52,45 @@ def test_second_command_for_a_step_is_rejected_and_fails_the_run():
     summary = {"errors": [], "nodes": {"plant": {"values": values}}, "rate_hz": 5000.0}
     v = judge_verdict(summary, args)
     assert v.exit_code == EXIT_FAILED and "2 duplicate commands for one step" in v.line
+
+
+def test_commands_without_the_run_token_are_foreign_even_at_step_0():
+    """An intruder's well-formed command that arrives first (step 0, before the controller's) is not applied: it
+    lacks the run token in header.frame_id; it is counted as foreign and named in the verdict's warnings."""
+    import rclpy
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+
+    from amb_bringup.verdict import EXIT_OK, add_arguments, judge_verdict
+    from amb_plant.node import PlantNode
+    from amb_ros.runtime import StopFlag
+
+    rclpy.init(args=["--ros-args", "-p", "run_token:=r0a1b2c3"])
+    try:
+        plant = PlantNode(StopFlag())
+        assert plant.token == "r0a1b2c3"
+
+        def command(k: int, amps: float, token: str) -> bytes:
+            msg = JointState()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k * plant.Ts_ns, 10**9)
+            msg.header.frame_id = token
+            msg.name = list(plant.channels)
+            msg.effort = [amps] * len(plant.channels)
+            return serialize_message(msg)
+
+        plant.on_command(command(0, 12.0, ""))  # an intruder's stale command, first
+        plant.on_command(command(0, 12.0, "r0a1b2c4"))  # another run's
+        plant.on_command(command(0, 1.0, "r0a1b2c3"))  # the controller's
+        assert np.array_equal(plant.commands[0], np.full(len(plant.channels), 1.0))
+        values = plant.values()
+        assert values["foreign /amb/current"] == "2" and values["duplicate commands"] == "0"
+        plant.destroy_node()
+    finally:
+        rclpy.try_shutdown()
+    p = argparse.ArgumentParser()
+    add_arguments(p)
+    args = p.parse_args([])
+    args.mode, args.no_plant = "lockstep", False
+    v = judge_verdict({"errors": [], "nodes": {"plant": {"values": values}}, "rate_hz": 5000.0}, args)
+    assert v.exit_code == EXIT_OK  # nothing foreign was applied
+    assert any("rejected 2 commands with another run token" in w for w in v.warnings), v.warnings

@@ -29,7 +29,7 @@ from .paramtable import check_parameters, check_value, closest, table
 from .processes import NODES, node_parameters
 
 ROS_NAMES = {v[3]: k for k, v in NODES.items()}  # ROS node name -> amb-rig name
-OWNED = {"mode": "--mode", "config_file": "--config", "set": "--set"}  # set by amb-rig's own options
+OWNED = {"mode": "--mode", "config_file": "--config", "set": "--set", "run_token": "--run-token"}  # amb-rig options
 
 
 def add_arguments(r) -> None:

@@ -69,6 +69,9 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
     if args.initial_displacement:
         per["plant"]["initial_displacement"] = float(args.initial_displacement)
     per["plant"]["start_timeout_s"] = float(args.start_timeout)
+    token = getattr(args, "run_token", None)
+    if token:  # the loop's two topics carry it; a message without it is another run's (docs/topics.md)
+        per["plant"]["run_token"] = per["controller"]["run_token"] = token
     for name in NODES:  # amb-rig's collector must hear every final report (the plant's also gates its start)
         per[name]["min_diagnostics_readers"] = 1
     if args.rt_priority:  # the loop's nodes only: the monitor and the recorder run under SCHED_IDLE beside it

@@ -14,6 +14,7 @@ one final loss as a failure when the controller had left, and says so in the sum
 
 from __future__ import annotations
 
+import secrets
 import time
 
 from amb_ros import messages as m
@@ -33,10 +34,21 @@ def add_arguments(r) -> None:
                    "on another host")  # fmt: skip
     r.add_argument("--no-base-motion", action="store_true", help="do not start base_motion: a real rig publishes "
                    "/base/imu (and /base/angular_acceleration) from its own IMU")  # fmt: skip
+    r.add_argument("--run-token", metavar="TOKEN", help="the run token in header.frame_id of /amb/displacement and "
+                   "/amb/current (letters, digits, _ and -; docs/topics.md): the plant and the controller reject "
+                   "messages with another; default a random one, none in a split run unless both sides give "
+                   "it")  # fmt: skip
 
 
 def check(args) -> str | None:
-    """An error message for contradictory options, else None (``--only plant`` implies --no-monitor)."""
+    """An error message for contradictory options, else None (``--only plant`` implies --no-monitor; sets the
+    run token: the given one, none in a split run without one, else a random one)."""
+    token = getattr(args, "run_token", None)
+    if token is not None and not m.RUN_TOKEN_RE.fullmatch(token):
+        return "--run-token: only letters, digits, '_' and '-', at most 64 characters"
+    if token is None:
+        split_run = getattr(args, "only", None) == "plant" or args.no_plant
+        args.run_token = "" if split_run else secrets.token_hex(8)
     if getattr(args, "only", None) == "plant":
         if args.no_plant:
             return "--only plant and --no-plant contradict each other (one side each)"

@@ -123,6 +123,11 @@ def _result(summary: dict, args) -> tuple[str, str, list[str]]:
         warnings.append(
             f"the controller rejected {foreign_samples:.0f} samples stamped far ahead of the run (foreign?)"
         )
+    for who, values, topic, what in (("plant", plant, "/amb/current", "commands"),
+                                     ("controller", ctl, "/amb/displacement", "samples")):  # fmt: skip
+        if n := _f(values, f"foreign {topic}"):  # well-formed, another run token: not applied (docs/topics.md)
+            warnings.append(f"the {who} rejected {n:.0f} {what} with another run token (another run or an intruder "
+                            "on this ROS_DOMAIN_ID)")  # fmt: skip
     if foreign := summary.get("foreign_diagnostics"):
         names = ", ".join(f"{k} ({n})" for k, n in sorted(foreign.items()))
         warnings.append(f"ignored /diagnostics from processes outside this run: {names}")

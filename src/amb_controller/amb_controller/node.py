@@ -34,7 +34,7 @@ from amb_dynamics.structure import AMBGains, channel_names
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.live_params import LiveParams, param_at_spec
 from amb_ros.loop import Waiter
-from amb_ros.node_base import RigNode
+from amb_ros.node_base import RigNode, run_token, run_token_spec
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos, latched_qos
 from amb_ros.runtime import run_node
@@ -47,6 +47,7 @@ from .realtime import on_realtime_sample, run_sample_triggered, run_timer_trigge
 def specs() -> list[ParamSpec]:
     c = "controller."
     return [
+        run_token_spec(),
         ParamSpec("proportional_gain", None, "kp", "A/m", 0.0, 1e12, config_key=c + "proportional_gain",
                   runtime=True),
         ParamSpec("derivative_gain", None, "kd", "A s/m", 0.0, 1e12, config_key=c + "derivative_gain",
@@ -109,8 +110,9 @@ class ControllerNode(RigNode):
                                      chans, len(self.channels), p["excitation_seed"])  # fmt: skip
         qos = data_qos(self.mode, p["qos_depth"])
         self.pub = self.create_publisher(JointState, m.CURRENT, qos)
-        self.codec = m.joint_state_codec(self.channels, ("effort",))
-        self.decoder = m.joint_state_decoder(self.channels, ("position",))
+        self.token = run_token(self)  # commands carry it; samples without it are not this run's
+        self.codec = m.joint_state_codec(self.channels, ("effort",), self.token or "")
+        self.decoder = m.joint_state_decoder(self.channels, ("position",), self.token)
         self.sub = self.create_subscription(JointState, m.DISPLACEMENT, self.on_sample, qos, raw=True)
         if p["safe_gains_on_unstable"]:
             self.listen_unstable()

@@ -44,7 +44,7 @@ from amb_dynamics.rig_plant import RigPlant
 from amb_dynamics.structure import build_structure
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.loop import Waiter
-from amb_ros.node_base import RigNode
+from amb_ros.node_base import RigNode, run_token, run_token_spec
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos, latched_qos
 from amb_ros.runtime import RunFailed, run_node
@@ -59,6 +59,7 @@ RATES_BLOCK = 25  # base_motion's default rates_block: the decoder's fast path (
 
 def specs() -> list[ParamSpec]:
     return [
+        run_token_spec(),
         ParamSpec("duration_s", 0.0, "run length (simulated in lockstep, wall in realtime); 0 = until stopped", "s",
                   0.0, 1e6),
         ParamSpec("current_limit", None, "amplifier saturation", "A", 0.0, 1e12, config_key="controller.current_limit"),
@@ -123,7 +124,8 @@ class PlantNode(RigNode):
         self.disp_pub = self.create_publisher(JointState, m.DISPLACEMENT, qos)
         self.state_pub = self.create_publisher(JointTrajectory, m.STATE, qos)
         self.clock_pub = self.create_publisher(Clock, m.CLOCK, qos) if self.mode == "lockstep" else None
-        self.disp_codec = m.joint_state_codec(self.channels, ("position",))
+        self.token = run_token(self)  # samples carry it; commands without it are not this run's
+        self.disp_codec = m.joint_state_codec(self.channels, ("position",), self.token or "")
         self.state_block = StateBlockWriter(self.model.dof_names, p["state_block"])
         # actuator and filter states, spin angle: /amb_plant/aux_state (same block layout), /amb/spin_speed
         self.aux_names = (*self.rig.labels[2 * self.model.n :], "spin")
@@ -136,7 +138,7 @@ class PlantNode(RigNode):
         self.contact_pub = self.create_publisher(String, m.TOUCHDOWN, latched_qos())
         self.contacts_sent = 0
         self.clock_codec = m.clock_codec()
-        self.cmd_decoder = m.joint_state_decoder(self.channels, ("effort",))
+        self.cmd_decoder = m.joint_state_decoder(self.channels, ("effort",), self.token)
         self.cmd_sub = self.create_subscription(JointState, m.CURRENT, self.on_command, qos, raw=True)
         self.handlers = [(self.cmd_sub, self.on_command)]
         if self.mode == "lockstep":  # every base sample, in blocks

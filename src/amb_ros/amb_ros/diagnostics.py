@@ -17,7 +17,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.duration import Duration
 
-from .messages import DIAGNOSTICS, Rejected
+from .messages import DIAGNOSTICS, Foreign, Rejected
 from .qos import diagnostics_qos
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
@@ -32,6 +32,7 @@ class Counters:
         self.published: dict[str, int] = defaultdict(int)
         self.received: dict[str, int] = defaultdict(int)
         self.rejected: dict[str, int] = defaultdict(int)
+        self.foreign: dict[str, int] = defaultdict(int)  # of the rejected: another run's token
         self.last_rejection = ""
 
     def decode(self, topic: str, decoder, raw: bytes):
@@ -40,6 +41,10 @@ class Counters:
         self.received[topic] += 1
         try:
             return decoder(raw)
+        except Foreign as exc:
+            self.foreign[topic] += 1
+            self.reject(topic, str(exc))
+            return None
         except Rejected as exc:
             self.reject(topic, str(exc))
             return None
@@ -54,7 +59,9 @@ class Counters:
 
     def values(self) -> dict[str, str]:
         out = {}
-        for name, table in (("published", self.published), ("received", self.received), ("rejected", self.rejected)):
+        tables = (("published", self.published), ("received", self.received), ("rejected", self.rejected),
+                  ("foreign", self.foreign))  # fmt: skip
+        for name, table in tables:
             for topic, count in sorted(table.items()):
                 out[f"{name} {topic}"] = str(count)
         out["rejected total"] = str(self.total_rejected)

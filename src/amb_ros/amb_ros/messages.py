@@ -20,6 +20,7 @@ Layouts (documented for users in docs/topics.md):
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 from geometry_msgs.msg import Vector3Stamped
@@ -47,6 +48,13 @@ BASE_FRAME = "base"
 
 class Rejected(Exception):
     """A received message that must not be used; ``str(exc)`` is the reason (one line)."""
+
+
+class Foreign(Rejected):
+    """A well-formed message that carries another run's token (``header.frame_id``): not this run's."""
+
+
+RUN_TOKEN_RE = re.compile(r"[A-Za-z0-9_-]{0,64}")
 
 
 def _set_seq(attr: str):
@@ -89,19 +97,25 @@ class Decoder:
         return t_ns, values
 
 
-def joint_state_codec(names: tuple[str, ...], fields: tuple[str, ...]) -> TemplateCodec:
-    """JointState with ``names`` and the float arrays ``fields`` (subset of position, velocity, effort)."""
+def joint_state_codec(names: tuple[str, ...], fields: tuple[str, ...], token: str = "") -> TemplateCodec:
+    """JointState with ``names`` and the float arrays ``fields`` (subset of position, velocity, effort); ``token``
+    is the run token in ``header.frame_id`` (/amb/displacement and /amb/current: docs/topics.md)."""
     msg = JointState()
+    msg.header.frame_id = token
     msg.name = list(names)
     n = len(names)
     return TemplateCodec(JointState, msg, [(_set_seq(f), n) for f in fields])
 
 
-def joint_state_decoder(names: tuple[str, ...], fields: tuple[str, ...]) -> Decoder:
-    codec = joint_state_codec(names, fields)
+def joint_state_decoder(names: tuple[str, ...], fields: tuple[str, ...], token: str | None = None) -> Decoder:
+    """Decoder of :func:`joint_state_codec`'s messages; with ``token`` (not None) a message whose
+    ``header.frame_id`` differs is :class:`Foreign` (another run's, or an intruder's)."""
+    codec = joint_state_codec(names, fields, token or "")
     expected = list(names)
 
     def slow(msg: JointState):
+        if token is not None and msg.header.frame_id != token:
+            raise Foreign("another run token in header.frame_id")
         got = list(msg.name)
         if sorted(got) != sorted(expected) or len(got) != len(expected):
             raise Rejected(f"channel names {got} (expected {expected})")

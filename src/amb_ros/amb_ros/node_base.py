@@ -9,7 +9,10 @@ from __future__ import annotations
 
 from rclpy.node import Node
 
+from amb_dynamics.errors import InputError
+
 from .diagnostics import Counters, Diagnostics
+from .messages import RUN_TOKEN_RE
 from .params import NodeParams, ParamSpec
 from .scheduling import set_realtime_priority
 
@@ -48,6 +51,21 @@ def common_specs() -> list[ParamSpec]:
             100,
         ),
     ]
+
+
+def run_token_spec() -> ParamSpec:
+    """The run token of the loop's two topics (controller and plant): docs/topics.md."""
+    return ParamSpec("run_token", "", "per-run token in header.frame_id of /amb/displacement and /amb/current; "
+                     "messages with another token are rejected and counted as foreign (amb-rig sets a random one; "
+                     "empty: none sent, any accepted)")  # fmt: skip
+
+
+def run_token(node: RigNode) -> str | None:
+    """The node's run token (None: accept any), checked: letters, digits, '_' and '-', at most 64."""
+    token = node.p["run_token"]
+    if not RUN_TOKEN_RE.fullmatch(token):
+        raise InputError("run_token: only letters, digits, '_' and '-', at most 64 characters")
+    return token or None
 
 
 class RigNode(Node):

@@ -50,7 +50,8 @@ class JointStateInput:
                 if len(getattr(msg, f)) != len(names):
                     raise m.Rejected(f"{f} has {len(getattr(msg, f))} values for {len(names)} names")
             self.names = names
-            self._decoder = m.joint_state_decoder(names, self.fields)
+            # the first message's run token too (header.frame_id): later samples of another run are foreign
+            self._decoder = m.joint_state_decoder(names, self.fields, msg.header.frame_id)
             try:
                 return self._decoder(raw)
             except m.Rejected:
