@@ -6,7 +6,9 @@ with the base, actuator and sensor dynamics, the nonlinear bearing law, touchdow
 point is inside an instability tongue of that config: its digital loop's max|mu| per period T = pi/omega is
 1.0606 (interpolated in T/Ts between exact products at T/Ts = 720, 721, 722), which the test computes itself.
 The monitor (full state, synchronous model from the tachometer, forcing `two_periods` for gravity) must raise
-the flag within 16 base-motion periods (2 pi / omega each).  At (0.4, 22.3), where the same model gives 1.0221,
+the flag within 16 base-motion periods (2 pi / omega each); the recorded bag replayed into `amb-monitor analyze`
+must give the live estimate, the model value, and with the four AMB displacements only (sensor-only) a flag
+within 16 base periods as well.  At (0.4, 22.3), where the same model gives 1.0221,
 the 6 s run leaves the growing mode inside the force-noise innovations: the monitor answers "insufficient
 excitation" there, which is what it should say (docs/monitor.md).
 """
@@ -35,8 +37,9 @@ def test_real_rig_tongue_point_raises_the_flag(venv_bin, tmp_path):
     loop = SampledLoop(build_structure(cfg), cfg, forcing=False)
     model = estimate_point(loop, BaseMotion.single("pitch", A, W), math.pi / W)
     assert model["max_abs_multiplier"] - model["error_bound"] > 1.05  # well inside the tongue
+    bag = tmp_path / "bag"
     cmd = [str(venv_bin / "amb-rig"), "run", "--duration", "6", "--motion", "pitch", "--amplitude", str(A),
-           "--frequency", str(W), "--json", "--log-dir", str(tmp_path / "logs")]  # fmt: skip
+           "--frequency", str(W), "--json", "--log-dir", str(tmp_path / "logs"), "--bag", str(bag)]  # fmt: skip
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     s = json.loads(proc.stdout)
@@ -49,3 +52,19 @@ def test_real_rig_tongue_point_raises_the_flag(venv_bin, tmp_path):
     # the estimate is above 1 by more than its margin; the touchdown contacts at the end (the rotor grows into
     # its backup bearings) bend the last windows, so the bound on its value is loose
     assert 1.02 < st["rho"] < model["max_abs_multiplier"] + 0.05, st
+
+    # the recorded run replayed into the monitor's pipeline gives the live estimate bit for bit
+    replay = analyze(venv_bin, bag)
+    assert replay["flag_time_s"] == pytest.approx(st["flag_raised_at_s"], abs=1e-9)
+    assert f"{replay['final']['rho']:.6f}" == mon["rho"]
+    assert replay["model"]["rho"] == pytest.approx(model["max_abs_multiplier"], abs=1e-9)  # on the complete bag
+    # sensor-only (the four AMB displacements a real rig has), same signals: flagged within 16 base periods too
+    sensors = analyze(venv_bin, bag, "--sensor-only", "--no-model")
+    assert sensors["unstable"] and sensors["flag_time_s"] <= 16 * base_period, sensors["flag_time_s"]
+
+
+def analyze(venv_bin, bag, *extra):
+    out = subprocess.run([str(venv_bin / "amb-monitor"), "analyze", str(bag), "--json", *extra], capture_output=True,
+                         text=True, timeout=600)  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    return json.loads(out.stdout)

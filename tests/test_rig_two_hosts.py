@@ -149,7 +149,9 @@ def test_hil_across_two_network_namespaces(tmp_path, venv_bin, two_hosts):
         assert code_b == 0, text_b[-3000:]
         plant_side, host_side = rig_json(text_a), rig_json(text_b)
         assert plant_side["steps"] == 500  # 0.1 s at 5 kHz
-        assert host_side["ended_by"] == "the plant finished"
+        # the plant's final report, or (a short run can end before the host side's amb-rig has discovered the
+        # plant, whose volatile final report it then misses) its publisher gone after the controller answered it
+        assert host_side["ended_by"] == "the plant finished" or host_side["ended_by"].startswith("the other side left")
         ctl = host_side["nodes"]["controller"]["values"]
         # y_0 .. y_500: the plant publishes its final sample too, and the controller answers every one, in order
         assert int(ctl["samples answered"]) == 501 and int(ctl["samples lost"]) == 0
