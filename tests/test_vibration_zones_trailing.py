@@ -37,3 +37,22 @@ def test_c_min_defaults_to_the_touchdown_clearance():
     assert clearance_of(load_config(None)) == pytest.approx(1.0e-3)  # the real rig's backup bearings
     assert clearance_of(load_config(None, ["iso14839.touchdown_clearance=8e-4"])) == pytest.approx(8e-4)
     assert clearance_of(load_config(paper_config_path())) is None  # the paper's rotor has none: no zone
+
+
+def test_offline_rig_run_grades_its_last_second(venv_bin):
+    import json
+    import subprocess
+
+    from amb_dynamics.iso14839 import zone_of
+
+    out = subprocess.run([str(venv_bin / "amb-dynamics"), "simulate", "--sampled", "--duration", "1.2", "--motion",
+                          "none", "--json"], capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    data = json.loads(out.stdout)
+    zones = data["vibration_last_s"]
+    assert set(zones) == set(data["peak_displacement_m"])
+    for axis, z in zones.items():
+        # the unbalance response at 1000 rpm: micrometres, well inside zone A of the 1.0 mm backup clearance
+        assert 1e-6 < z["displacement_m"] <= data["peak_displacement_m"][axis]
+        assert z["ratio_to_c_min"] == pytest.approx(z["displacement_m"] / 1.0e-3, rel=1e-12)
+        assert z["zone"] == zone_of(z["ratio_to_c_min"], (0.3, 0.4, 0.5)) == "A"

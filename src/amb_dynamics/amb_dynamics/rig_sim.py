@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InputError
+from .iso14839 import clearance_of, vibration_zones
 from .rig_loop import simulate_rig
 
 
@@ -36,11 +37,19 @@ def run_sampled(s, motion, args, describe) -> tuple[dict, str]:
             for ev in run.contacts
         ],
     }
+    # ISO 14839-2 grade of the run's last second (its end, not its start-up transient)
+    tail = run.displacement[-min(len(run.t), max(1, round(1.0 / Ts))) :]
+    iso = cfg.iso14839
+    zones = vibration_zones({c: tail[:, j] for j, c in enumerate(model.channels)}, clearance_of(cfg),
+                            iso.vibration_zone_limits, iso.vibration_measure)  # fmt: skip
+    data["vibration_last_s"] = {c: z.to_dict() for c, z in zones.items()}
     if args.out:
         data["png"] = str(plot_rig_run(run, model.channels, clearance, cfg.bearings.air_gap, args.out))
     lines = [data["model"], f"sampled-data rig loop, {steps} steps at {cfg.controller.rate_hz:g} Hz"]
     lines += [f"  peak {c}: {p * 1e6:.2f} um" for c, p in data["peak_displacement_m"].items()]
     lines.append(f"  touchdown contacts: {len(run.contacts)}")
+    lines += [f"  last second {c}: {z.displacement_m * 1e6:.2f} um {z.measure}, ISO 14839-2 zone {z.zone or '-'}"
+              for c, z in zones.items()]  # fmt: skip
     return data, "\n".join(lines)
 
 
