@@ -35,6 +35,7 @@ BENCHMARKS = (
     "bench_live_cost",
     "bench_sensitivity",
     "bench_rig_plant",
+    "bench_monitor_rig",
 )
 
 

@@ -71,7 +71,7 @@ def test_drift_terms_follow_a_changing_speed():
     j = np.arange(cols)
     phi = 1.1 * j + 0.004 * j**2  # the speed per period rises 1.1 -> 1.41 rad
     E = synchronous_regressors(phi, 1, drift=True)
-    assert E.shape == (4, cols)
+    assert E.shape == (6, cols)
     Z = synthetic(STABLE_MU, cols, forcing=np.zeros((0, cols)), seed=4)
     rng = np.random.default_rng(4)
     c0, c1 = rng.standard_normal((2, Z.shape[0])) + 1j * rng.standard_normal((2, Z.shape[0]))

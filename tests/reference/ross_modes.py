@@ -14,10 +14,8 @@ import warnings
 warnings.filterwarnings("ignore")
 
 
-def main(speeds_rpm):
-    import numpy as np
-    import ross as rs
-
+def seed_rotor(rs):
+    """The seed rotor in ROSS: (rotor, disk).  ross_unbalance.py builds the same one from here."""
     steel = rs.Material(name="amb_rig_steel", rho=7810.0, E=211e9, G_s=81.2e9)
     shaft = [
         rs.ShaftElement(
@@ -29,7 +27,14 @@ def main(speeds_rpm):
     bearings = [
         rs.BearingElement(n=n, kxx=1.388e6, kyy=1.388e6, cxx=2000.0, cyy=2000.0, frequency=None) for n in (0, 4)
     ]
-    rotor = rs.Rotor(shaft, [disk], bearings)
+    return rs.Rotor(shaft, [disk], bearings), disk
+
+
+def main(speeds_rpm):
+    import numpy as np
+    import ross as rs
+
+    rotor, disk = seed_rotor(rs)
     out = {}
     for rpm in speeds_rpm:
         modal = rotor.run_modal(speed=rpm * np.pi / 30.0, num_modes=4 * rotor.ndof)

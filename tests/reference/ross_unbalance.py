@@ -13,6 +13,8 @@ import json
 import sys
 import warnings
 
+from ross_modes import seed_rotor  # the same rotor (this script's folder is on sys.path)
+
 warnings.filterwarnings("ignore")
 NODES = (1, 5, 7)
 
@@ -21,18 +23,7 @@ def main(U, phase, speeds_rpm):
     import numpy as np
     import ross as rs
 
-    steel = rs.Material(name="amb_rig_steel", rho=7810.0, E=211e9, G_s=81.2e9)
-    shaft = [
-        rs.ShaftElement(
-            L=0.25, idl=0.0, odl=0.03, material=steel, shear_effects=False, rotary_inertia=True, gyroscopic=True
-        )
-        for _ in range(6)
-    ]
-    disk = rs.DiskElement.from_geometry(n=6, material=steel, width=0.07, i_d=0.0, o_d=0.5)
-    bearings = [
-        rs.BearingElement(n=n, kxx=1.388e6, kyy=1.388e6, cxx=2000.0, cyy=2000.0, frequency=None) for n in (0, 4)
-    ]
-    rotor = rs.Rotor(shaft, [disk], bearings)
+    rotor, _ = seed_rotor(rs)
     w = np.array(speeds_rpm) * np.pi / 30.0
     resp = rotor.run_unbalance_response(node=6, unbalance_magnitude=U, unbalance_phase=phase, frequency=w)
     fr = np.asarray(resp.forced_resp)

@@ -107,14 +107,15 @@ def forcing_regressors(forcing: str | int | np.ndarray, pairs: int) -> np.ndarra
 
 
 def synchronous_regressors(angles: np.ndarray, harmonics: int, drift: bool) -> np.ndarray:
-    """Sequences over the columns spanning a response synchronous with the spin, shape (2 h (1 + drift), cols).
+    """Sequences over the columns spanning a response synchronous with the spin, shape (2 h (1 + 2 drift), cols).
 
     angles : (cols,) spin angle (rad) at the start of each column.  At constant spin speed the response to
     unbalance and runout (forcing e^{i h phi(t)}) of a T-periodic loop is e^{i h phi(t)} p(t) with p T-periodic,
     so column j carries Re(c_h e^{i h phi_j}): cos and sin of h phi_j per harmonic h span it exactly.  With
-    ``drift`` (the speed changes within the window) each harmonic also gets (j - mean j) / cols times them: an
-    amplitude and phase that change linearly over the window (a run-up through the response's frequency
-    dependence), to first order.
+    ``drift`` (the speed changes within the window) each harmonic also gets u_j and u_j^2 times them, u_j =
+    (j - mean j) / cols: an amplitude and phase that change over the window to second order (a run-up, where the
+    response follows the speed through its frequency dependence; first order alone left a false alarm on the
+    real rig approaching its 166 rad/s mode at 50 rpm/s).
     """
     angles = np.asarray(angles, dtype=float)
     rows = []
@@ -123,7 +124,7 @@ def synchronous_regressors(angles: np.ndarray, harmonics: int, drift: bool) -> n
         c, s = np.cos(h * angles), np.sin(h * angles)
         rows += [c, s]
         if drift:
-            rows += [jc * c, jc * s]
+            rows += [jc * c, jc * s, jc * jc * c, jc * jc * s]
     return np.array(rows).reshape(len(rows), angles.size)
 
 

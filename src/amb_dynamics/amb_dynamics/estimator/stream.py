@@ -62,7 +62,7 @@ class EstimatorConfig:
     sync_harmonics : int
         Spin harmonics whose synchronous response (unbalance, runout) is removed like the base forcing
         (:func:`.mapfit.synchronous_regressors`): each sample then comes with its spin angle (``push(t, s,
-        angle)``); 0 = none.  Each harmonic costs two snapshot pairs, four while the speed changes.
+        angle)``); 0 = none.  Each harmonic costs two snapshot pairs, six while the speed changes.
     sync_drift_tol : float
         Relative change of the spin speed over the window above which the synchronous sequences get their
         linear drift terms (a run-up or run-down).
