@@ -28,6 +28,7 @@ SLOT_TOL = 1e-3  # a sample within this fraction of Ts of a phase time is taken 
 NOISE_BUFFER = 2048  # fourth differences kept per channel for the noise estimate
 D4_VARIANCE = 70.0  # Var(n_k - 4n_{k-1} + 6n_{k-2} - 4n_{k-3} + n_{k-4}) / Var(n) for white noise
 MAD_TO_STD = 1.4826
+DRIFT_PAIRS = 4  # per harmonic: the drift terms u_j and u_j^2 times cos and sin (mapfit.synchronous_regressors)
 
 
 @dataclass(frozen=True)
@@ -62,7 +63,8 @@ class EstimatorConfig:
     sync_harmonics : int
         Spin harmonics whose synchronous response (unbalance, runout) is removed like the base forcing
         (:func:`.mapfit.synchronous_regressors`): each sample then comes with its spin angle (``push(t, s,
-        angle)``); 0 = none.  Each harmonic costs two snapshot pairs, six while the speed changes.
+        angle)``); 0 = none.  Each harmonic costs two snapshot pairs, six while the speed changes (the window
+        then grows by those four).
     sync_drift_tol : float
         Relative change of the spin speed over the window above which the synchronous sequences get their
         linear drift terms (a run-up or run-down).
@@ -146,7 +148,9 @@ class StreamingEstimator:
             else np.arange(P) * config.period / P
         )
         self._stride = max(1, P // config.updates_per_period)
-        cap = (config.window + 2) * P
+        # while the spin speed changes, the window grows by the pairs its drift terms cost (4 per harmonic)
+        self._drift_extra = DRIFT_PAIRS * config.sync_harmonics
+        cap = (config.window + self._drift_extra + 2) * P
         self._slots = np.zeros((cap, channels))
         self._angles = np.zeros(cap)  # spin angle (rad) at each slot (synchronous regressors)
         self._noise = (
@@ -237,6 +241,15 @@ class StreamingEstimator:
         return noise
 
     # ---- fitting -----------------------------------------------------------------------------------------
+    def _drifting(self, cols: int) -> bool:
+        """Does the spin speed per period change by more than ``sync_drift_tol`` over the last ``cols`` columns?"""
+        cfg = self.cfg
+        if not cfg.sync_harmonics or cols < 3:
+            return False
+        P, cap = cfg.phases, self._slots.shape[0]
+        speed = np.diff(self._angles[(self._g - cols * P + np.arange(cols) * P) % cap])
+        return bool(np.ptp(speed) > cfg.sync_drift_tol * max(np.abs(speed).max(), 1e-300))
+
     def window_forcing(self, cols: int) -> str | int | np.ndarray:
         """The forcing model of a window of ``cols`` columns: the base forcing, and with ``sync_harmonics`` its
         sequences stacked with the synchronous ones from the spin angles at the columns' first slots."""
@@ -245,15 +258,16 @@ class StreamingEstimator:
             return cfg.forcing
         P, cap = cfg.phases, self._slots.shape[0]
         phi = self._angles[(self._g - cols * P + np.arange(cols) * P) % cap]
-        speed = np.diff(phi)
-        drift = speed.size > 1 and np.ptp(speed) > cfg.sync_drift_tol * max(np.abs(speed).max(), 1e-300)
-        sync = synchronous_regressors(phi, cfg.sync_harmonics, bool(drift))
+        sync = synchronous_regressors(phi, cfg.sync_harmonics, self._drifting(cols))
         return np.vstack([forcing_regressors(cfg.forcing, cols), sync])
 
     def window_matrix(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """(Z, row_scale): the columns of the current window in time order, rows scaled; None if < 2 columns."""
+        """(Z, row_scale): the columns of the current window in time order, rows scaled; None if < 2 columns.
+        While the spin speed changes the window is longer by the pairs the drift terms cost."""
         P, cap = self.cfg.phases, self._slots.shape[0]
         cols = min(self.cfg.window + 1, self._g // P)
+        if self._drift_extra and self._drifting(cols):
+            cols = min(self.cfg.window + 1 + self._drift_extra, self._g // P)
         if cols < 2:
             return None
         idx = np.arange(self._g - cols * P, self._g) % cap
