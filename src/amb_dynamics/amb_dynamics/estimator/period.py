@@ -55,6 +55,16 @@ def _repeat_error(t: np.ndarray, W: np.ndarray, lag: float, sign: float = 1.0) -
     return float(err / max(np.sqrt(np.mean(np.square(W))), 1e-300))
 
 
+def _interpolation_error(W: np.ndarray) -> float:
+    """RMS error of linear interpolation between the samples, relative to the RMS of Omega: |second difference| / 8
+    per sample.  Sparse or irregular base rates (a realtime run's /base/imu, wall-clock stamps) interpolate less
+    exactly than the lockstep 1 kHz ones, and the repeat test must not take that for a motion that does not repeat."""
+    if W.shape[0] < 3:
+        return 0.0
+    d2 = W[2:] - 2.0 * W[1:-1] + W[:-2]
+    return float(np.sqrt(np.mean(np.square(d2))) / 8.0 / max(np.sqrt(np.mean(np.square(W))), 1e-300))
+
+
 def estimate_base_period(t: np.ndarray, Omega: np.ndarray, sample_time: float | None = None) -> PeriodEstimate:
     """Fundamental period and period of A(t) from angular-velocity samples.
 
@@ -80,10 +90,11 @@ def estimate_base_period(t: np.ndarray, Omega: np.ndarray, sample_time: float | 
     up = _upcrossings(t, W[:, c] - W[:, c].mean())
     if up.size < 3:
         raise InputError("fewer than two base-motion periods recorded: cannot estimate the period yet")
+    tol = REPEAT_TOL + 2.0 * _interpolation_error(W)
     base = None
     for k in range(1, min(MAX_CROSSINGS_PER_PERIOD, up.size - 1) + 1):
         lag = float(np.median(up[k:] - up[:-k]))
-        if _repeat_error(t, W, lag) < REPEAT_TOL:
+        if _repeat_error(t, W, lag) < tol:
             m = (up.size - 1) // k  # average over as many whole periods as recorded
             base = float((up[m * k] - up[0]) / m)
             break
@@ -91,7 +102,7 @@ def estimate_base_period(t: np.ndarray, Omega: np.ndarray, sample_time: float | 
         raise InputError("the base motion does not repeat within the record: no periodic Floquet analysis")
     no_roll = peak[0] <= ZERO_RATE * peak.max()
     pure_roll = peak[1] <= ZERO_RATE * peak.max() and peak[2] <= ZERO_RATE * peak.max()
-    if no_roll and _repeat_error(t, W, base / 2.0, sign=-1.0) < REPEAT_TOL:
+    if no_roll and _repeat_error(t, W, base / 2.0, sign=-1.0) < tol:
         period, forcing = base / 2.0, "alternating"
     else:
         period, forcing = base, ("none" if pure_roll else "constant")
