@@ -72,6 +72,9 @@ def test_any_loss_in_lockstep_fails_and_monitor_loss_is_a_warning():
     mon = dict(STABLE_MON, **{"samples lost": "7"})
     v = judge_verdict(_summary({}, {"samples lost": "0"}, mon), _args())
     assert v.exit_code == EXIT_OK and "[WARN: the monitor lost 7 samples]" in v.line
+    # an estimate on gapped data is no verdict: withheld, with what it said (issue 16)
+    assert v.result == "unknown" and "stability withheld: the monitor lost 7 samples" in v.line
+    assert "said stable, rho = 0.9988" in v.line
 
 
 def test_node_failure_comes_first_and_no_plant_without_rig_fails():

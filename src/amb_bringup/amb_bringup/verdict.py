@@ -139,6 +139,10 @@ def _result(summary: dict, args) -> tuple[str, str, list[str]]:
     if touchdowns:
         return "touchdown", f"TOUCHDOWN ({touchdowns:.0f} contact events){peak_text}", warnings
     rho, period = _f(mon, "rho"), _f(mon, "period (s)")
+    if lost and mon.get("verdict") in ("stable", "marginal", "unstable"):  # gapped data: no verdict from them
+        said = "UNSTABLE" if mon.get("unstable") == "true" else mon.get("verdict")
+        return "unknown", (f"stability withheld: the monitor lost {lost:.0f} samples (its estimate on gapped data "
+                           f"said {said}, rho = {rho:.4f})") + peak_text, warnings  # fmt: skip
     if mon.get("unstable") == "true" or (rho is not None and rho > 1.0 and mon.get("verdict") == "unstable"):
         text = "UNSTABLE"
         if rho is not None:
