@@ -53,6 +53,11 @@ def test_real_rig_tongue_point_raises_the_flag(venv_bin, tmp_path):
     # its backup bearings) bend the last windows, so the bound on its value is loose
     assert 1.02 < st["rho"] < model["max_abs_multiplier"] + 0.05, st
 
+    # ISO 14839-2 grade of the run's last second: a rotor that reached its backup bearings (C_min) is in zone D
+    zones = {a: v["zone"] for a, v in s["vibration"]["axes"].items()}
+    assert set(zones) == {"amb1_y", "amb1_z", "amb5_y", "amb5_z"}
+    if int(s["nodes"]["plant"]["values"]["touchdown contacts"]):
+        assert "D" in zones.values(), zones
     # the recorded run replayed into the monitor's pipeline gives the live estimate bit for bit
     replay = analyze(venv_bin, bag)
     assert replay["flag_time_s"] == pytest.approx(st["flag_raised_at_s"], abs=1e-9)

@@ -38,7 +38,6 @@ from trajectory_msgs.msg import JointTrajectory
 
 import amb_ros.messages as m
 from amb_dynamics.fe import dof_index
-from amb_dynamics.iso14839 import TrailingPeaks, clearance_of
 from amb_dynamics.rig_loop import levitated_state
 from amb_dynamics.rig_plant import RigPlant
 from amb_dynamics.structure import build_structure
@@ -51,6 +50,7 @@ from amb_ros.runtime import RunFailed, run_node
 from amb_ros.state_block import StateBlockDecoder, StateBlockWriter
 
 from .loops import run_lockstep, run_realtime
+from .report import DisplacementReport, contact_json, contact_summary
 from .sensor import CommandPolicy, SensorModel
 
 SAMPLE_MEMORY = 4096  # realtime: published samples whose stamp a command may still answer
@@ -104,10 +104,8 @@ class PlantNode(RigNode):
         self.policy = CommandPolicy(len(self.channels), p["hold_samples"])
         self.x = self.initial_state(p["initial_displacement"])
         self.steps = 0
-        self.peak = np.zeros(len(self.channels))
-        self.trailing = TrailingPeaks(len(self.channels), self.Ts)  # the end of the run, without its start
-        self.c_min = clearance_of(cfg)
-        self.iso = cfg.iso14839
+        self.report = DisplacementReport(self.channels, cfg, self.Ts)
+        self.peak = self.report.peak
         self.saturated = 0
         self.max_current = 0.0
         self.failure = ""
@@ -238,8 +236,7 @@ class PlantNode(RigNode):
     # -- physics glue ----------------------------------------------------------------------------------
     def publish_outputs(self, k: int, stamp_ns: int) -> None:
         y = self.rig.displacement(self.x)
-        np.maximum(self.peak, np.abs(y), out=self.peak)
-        self.trailing.add(y)
+        self.report.add(y)
         if self.peak.max() > self.max_y:
             j = int(np.argmax(self.peak))
             raise RunFailed(
@@ -374,16 +371,6 @@ class PlantNode(RigNode):
         text = f"{state}: {self.steps} steps" + ("; " + "; ".join(notes) if notes else "")
         return (WARN if notes else OK), text
 
-    def vibration_values(self) -> dict[str, str]:
-        """ISO 14839-2 grade of the trailing second (amb_dynamics.iso14839): measure, ratio to C_min, zone."""
-        iso = self.iso
-        zones = self.trailing.zones(self.channels, self.c_min, iso.vibration_zone_limits, iso.vibration_measure)
-        out = {"vibration window (s)": f"{self.trailing.covered * self.Ts:.6g}"}
-        for name, z in zones.items():
-            out[f"vibration {name} (m)"] = f"{z.displacement_m:.6g}"
-            out[f"vibration zone {name}"] = z.zone or "-"
-        return out
-
     def values(self) -> dict[str, str]:
         wall = (self.t_wall1 or time.monotonic()) - self.t_wall0 if self.t_wall0 else 0.0
         out = self.common_values()
@@ -405,10 +392,7 @@ class PlantNode(RigNode):
         )
         out.update(contact_summary(self.rig.contact.events))
         out["spin speed (rpm)"] = f"{self.rig.spin_speed() * 30 / np.pi:.6g}"
-        for name, peak in zip(self.channels, self.peak, strict=True):
-            out[f"peak {name} (m)"] = f"{peak:.6g}"
-            out[f"peak {name} / air gap"] = f"{peak / self.air_gap:.6g}"
-        out.update(self.vibration_values())
+        out.update(self.report.values())
         if self.mode == "lockstep":
             out["duplicate commands"] = str(self.duplicates)
             out["start wait (s)"] = f"{self.start_wait_s:.3f}"
@@ -422,28 +406,6 @@ class PlantNode(RigNode):
             out["samples answered"] = str(self.sample_round_trip.count)
             out.update(self.sample_round_trip.summary("round trip"))
         return out
-
-
-def contact_json(ev) -> str:
-    """A touchdown event as one JSON object (t_s, node, penetration_m, peak_force_n; end_s once it ended)."""
-    import json
-
-    t0, node, pen, force, t1 = ev
-    return json.dumps({"t_s": t0, "node": node, "penetration_m": pen, "peak_force_n": force, "end_s": t1})
-
-
-def contact_summary(events) -> dict[str, str]:
-    """Diagnostics values of the touchdown contacts (shown in the run summary)."""
-    if not events:
-        return {"touchdown contacts": "0"}
-    first = events[0]
-    worst = max(events, key=lambda ev: ev[2])
-    return {
-        "touchdown contacts": str(len(events)),
-        "first touchdown": f"t = {first[0]:.6g} s at node {first[1]}",
-        "max penetration (m)": f"{worst[2]:.6g} (node {worst[1]}, t = {worst[0]:.6g} s)",
-        "peak contact force (N)": f"{max(ev[3] for ev in events):.6g}",
-    }
 
 
 def main(args: list[str] | None = None) -> None:
