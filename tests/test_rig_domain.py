@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import re
 import time
+from pathlib import Path
 
 import pytest
 
@@ -20,12 +21,14 @@ from helpers import rig_json
 from procs import spawn
 
 pytestmark = pytest.mark.ros
+PAPER = ["--config", str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")]  # a fast plant
 
 
 def test_second_rig_on_the_same_domain_is_refused_and_the_first_is_untouched(tmp_path, venv_bin):
     rig = str(venv_bin / "amb-rig")
-    # long enough to outlast the second one's wait for the domain (LOCK_WAIT_S): about 20 s of wall time
-    first = [rig, "run", "--duration", "8", "--no-monitor", "--json", "--log-dir", str(tmp_path / "first")]
+    # long enough to outlast the second one's wait for the domain (LOCK_WAIT_S): about 20 s of wall time on the
+    # paper's plant (the real rig's full FE plant steps ~6x slower: the lock is the point here, not the physics)
+    first = [rig, "run", "--duration", "8", "--no-monitor", "--json", "--log-dir", str(tmp_path / "first"), *PAPER]
     with spawn(first, tmp_path / "first.log") as proc:
         assert proc.wait_for("started plant", 60), proc.text()
         with spawn([rig, "run", "--duration", "1", "--no-monitor"], tmp_path / "second.log") as second:
