@@ -39,7 +39,7 @@ os.environ.update(single_thread_env())  # one BLAS thread, set before numpy load
 import numpy as np
 from report import record
 
-from amb_dynamics.config import load_config
+from amb_dynamics.config import load_config, paper_config_path
 from amb_dynamics.estimator.fit import fit_period_map
 from amb_dynamics.estimator.sim import SnapshotSimulator, add_measurement_noise
 from amb_dynamics.estimator.stream import EstimatorConfig, StreamingEstimator
@@ -63,7 +63,7 @@ class Case:
     """Simulators (one per start phase) and the model rho of one pitch case."""
 
     def __init__(self, amplitude, N, base_forcing=False, excitation=EXCITATION_A):
-        cfg = load_config(overrides=[f"base_forcing={str(base_forcing).lower()}"])
+        cfg = load_config(paper_config_path(), [f"base_forcing={str(base_forcing).lower()}"])  # the paper's loop
         self.model = model = build_structure(cfg)
         self.loop = loop = SampledLoop(model, cfg)
         self.N, self.T, self.excitation = N, N * loop.Ts, excitation
@@ -186,7 +186,8 @@ def all_costs() -> dict:
 
 BIN = Path(sys.executable).parent
 RIG_T = STABLE[1] * 2e-4  # the stable case's period at 5 kHz: the monitor gets it as a parameter (no waiting)
-RIG_ARGS = ["--duration", "2.0", "--motion", "pitch", "--amplitude", "0.3", "--frequency", repr(np.pi / RIG_T),
+RIG_ARGS = ["--config", str(paper_config_path()), "--duration", "2.0", "--motion", "pitch", "--amplitude", "0.3",
+            "--frequency", repr(np.pi / RIG_T),
             "--set", "controller.current_limit=1e9", "--param", "plant:max_displacement_ratio=1e9",
             "--param", "plant:initial_displacement=1e-3"]  # fmt: skip
 
