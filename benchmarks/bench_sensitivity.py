@@ -5,9 +5,10 @@ wall time of one measured axis (`amb-rig sensitivity`, lockstep, seed rotor at 5
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -56,8 +57,9 @@ def main() -> dict:
 def measured_axis(resolution_hz: float = 0.5, periods: int = 6) -> dict:
     """Wall time of `amb-rig sensitivity` on amb1_y: a multisine of ``periods`` periods at ``resolution_hz``."""
     duration = periods / resolution_hz
-    cmd = [shutil.which("amb-rig") or "amb-rig", "sensitivity", "--axis", "amb1_y", "--band", "5:50", "--duration",
-           str(duration), "--resolution", str(resolution_hz), "--settle", str(1 / resolution_hz), "--json"]  # fmt: skip
+    cmd = [str(Path(sys.executable).parent / "amb-rig"), "sensitivity", "--axis", "amb1_y", "--band", "5:50",
+           "--duration", str(duration), "--resolution", str(resolution_hz), "--settle", str(1 / resolution_hz),
+           "--json"]  # fmt: skip
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=1800)
     wall = time.perf_counter() - t0
