@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 BIN = Path(sys.executable).parent
+PAPER = ["--config", str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")]  # a fast plant
 RIG_DURATION = 4.0  # simulated s: 20,000 steps at 5 kHz
 PAIRS = 5
 
@@ -22,7 +23,7 @@ PAIRS = 5
 def steps_per_s(live: bool) -> float:
     from amb_ros.env import child_env
 
-    cmd = [str(BIN / "amb-rig"), "run", "--json", "--no-monitor", "--duration", str(RIG_DURATION),
+    cmd = [str(BIN / "amb-rig"), "run", "--json", "--no-monitor", "--duration", str(RIG_DURATION), *PAPER,
            "--set", "controller.current_limit=1e9"]  # fmt: skip
     if live:
         cmd += ["--live", "--live-port", "0"]

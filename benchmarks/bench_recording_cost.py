@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 from bench_bag import BIN, EVERY
+from bench_lockstep import PAPER
 from report import record
 
 RIG_DURATION = 2.0  # simulated s per lockstep run (10,000 steps at 5 kHz)
@@ -99,7 +100,7 @@ def rig_steps_per_s(bag: Path | None, reader: bool = False, burn: float = 0.0) -
 
     from amb_ros.env import child_env
 
-    cmd = [str(BIN / "amb-rig"), "run", "--json", "--no-monitor", "--duration", str(RIG_DURATION),
+    cmd = [str(BIN / "amb-rig"), "run", "--json", "--no-monitor", "--duration", str(RIG_DURATION), *PAPER,
            "--set", "controller.current_limit=1e9"]  # fmt: skip
     if bag is not None:
         cmd += ["--bag", str(bag)]
