@@ -132,12 +132,13 @@ class TrailingPeaks:
     @property
     def covered(self) -> int:
         """Samples the values cover (the whole stream while it is shorter than the window)."""
-        return min(self.n, (self.hi.shape[0] - 1) * self.block + self.n % self.block)
+        # the completed blocks kept beside the current one, which is full at a block boundary
+        return min(self.n, (self.hi.shape[0] - 1) * self.block + (self.n % self.block or self.block))
 
     def zones(self, channels, c_min: float | None, limits, measure: str = "zero_peak") -> dict[str, VibrationZone]:
         """ISO 14839-2 zone per channel of the trailing window (see :func:`vibration_zones`)."""
-        zero_peak, p2p = self.values()
-        d = zero_peak if measure == "zero_peak" else p2p
         if measure not in ("zero_peak", "peak_to_peak"):
             raise InputError(f"vibration measure must be zero_peak or peak_to_peak (got {measure!r})")
+        zero_peak, p2p = self.values()
+        d = zero_peak if measure == "zero_peak" else p2p
         return {ch: _zone(ch, float(v), measure, c_min, limits) for ch, v in zip(channels, d, strict=True)}

@@ -67,7 +67,7 @@ class EstimatorConfig:
         then grows by those four).
     sync_drift_tol : float
         Relative change of the spin speed over the window above which the synchronous sequences get their
-        linear drift terms (a run-up or run-down).
+        drift terms (first and second order; a run-up or run-down).
     """
 
     period: float
