@@ -16,8 +16,9 @@ import numpy as np
 from .chart import CHART_STEPS, CHEB_NODES, _Row
 from .config import RotorConfig, to_dict
 from .dask_exec import ChunkRunner, cache_key
-from .digital_chart import A_NODES, AMP_TOL, CHART_MAX_R, U_NODES, digital_row
+from .digital_chart import A_NODES, AMP_TOL, CHART_MAX_R, digital_row
 from .digital_floquet import BOUND_FLOOR, BOUND_SAFETY
+from .rate_family import U_NODES
 from .sampled import SampledLoop
 from .structure import build_structure
 from .system import closed_loop

@@ -6,9 +6,9 @@ One grid row (fixed omega, all amplitudes) at a time, built on ``SampledLoop.ste
    (T/Ts = p/r, r <= ``CHART_MAX_R``) or three integer ratios interpolated in x, with the error bound.
 2. Along a single-axis motion the step map depends on the base rate w = Omega_axis (and its derivative v) only,
    and for pitch and yaw only on w^2 (both detected numerically from ``step_map``).  F is therefore interpolated
-   (Chebyshev, barycentric) from ``U_NODES`` step maps in u = w^2 (or in (w, v) for roll) instead of one expm per
-   step per point; the interpolation error is measured at probe points and the nodes doubled until it is below
-   ``STEP_TOL`` relative.
+   (:class:`rate_family.RateFamily`: Chebyshev, barycentric) from a few step maps in u = w^2 (or in (w, v) for roll)
+   instead of one expm per step per point; the interpolation error is measured at probe points and the nodes
+   doubled until it is below ``STEP_TOL`` relative.
 3. The monodromy Psi(A) is an entire function of A^2 (pitch, yaw) or A (roll): the products are formed at
    ``A_NODES`` Chebyshev amplitudes plus two check amplitudes (the grid amplitudes farthest from the nodes),
    interpolated to the grid, and the nodes doubled until rho at the check amplitudes agrees to ``AMP_TOL``.
@@ -24,11 +24,10 @@ import numpy as np
 from .chart import _bary_weights, _cheb_nodes, _tree_product
 from .digital_floquet import RatioPlan, plan_ratio
 from .motion import BaseMotion
+from .rate_family import STEP_TOL, RateFamily
 from .sampled import SampledLoop
 
 CHART_MAX_R = 4  # exact hybrid products in a chart only for r <= 4 (cost r T/Ts steps); otherwise interpolation
-U_NODES = 6
-STEP_TOL = 1e-13  # max entry error of an interpolated step map, relative to max |F|
 A_NODES = 6
 AMP_TOL = 1e-10  # |rho_interp - rho_exact| at the check amplitudes
 BLOCK = 256  # steps multiplied per batch (memory: nodes x BLOCK x dim^2 doubles)
@@ -42,63 +41,6 @@ class RowResult:
     critical: np.ndarray  # (n_A,) rad/s
     method: int  # METHOD_CODES
     steps: int  # step maps per point (sum over the ratios)
-
-
-class StepMapFamily:
-    """Interpolant of the step map F(w, v) along one base axis (rates w e, dOmega v e), for one SampledLoop."""
-
-    def __init__(self, loop: SampledLoop, axis_vec: np.ndarray, wmax: float, vmax: float):
-        self.loop, self.e = loop, axis_vec
-        wmax, vmax = max(wmax, 1e-12), max(vmax, 1e-12)
-        f_wv = self._F(wmax, vmax)
-        self.uses_v = not np.array_equal(f_wv, self._F(wmax, 0.0))
-        self.even = (not self.uses_v) and np.array_equal(self._F(-wmax, 0.0), self._F(wmax, 0.0))
-        self.wmax, self.vmax = wmax, vmax
-        self.scale = float(np.abs(f_wv).max())
-        n = U_NODES
-        while True:
-            self._build(n)
-            err = self._probe_error()
-            if err <= STEP_TOL * self.scale or n >= 64:
-                self.error = err / self.scale
-                break
-            n *= 2
-
-    def _F(self, w: float, v: float) -> np.ndarray:
-        return self.loop.step_map(w * self.e, v * self.e)
-
-    def _build(self, n: int) -> None:
-        self.n = n
-        if self.even:
-            self.nodes = [_cheb_nodes(0.0, self.wmax**2, n)]
-            self.Fn = np.array([self._F(np.sqrt(max(u, 0.0)), 0.0) for u in self.nodes[0]])
-        elif not self.uses_v:
-            self.nodes = [_cheb_nodes(-self.wmax, self.wmax, n)]
-            self.Fn = np.array([self._F(w, 0.0) for w in self.nodes[0]])
-        else:
-            self.nodes = [_cheb_nodes(-self.wmax, self.wmax, n), _cheb_nodes(-self.vmax, self.vmax, n)]
-            self.Fn = np.array([self._F(w, v) for w in self.nodes[0] for v in self.nodes[1]])
-        self.Fflat = self.Fn.reshape(self.Fn.shape[0], -1)
-
-    def weights(self, w: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """(len(w), n_nodes) interpolation weights at the rates (w, v)."""
-        if self.even:
-            return _bary_weights(self.nodes[0], w * w)
-        if not self.uses_v:
-            return _bary_weights(self.nodes[0], w)
-        Ww, Wv = _bary_weights(self.nodes[0], w), _bary_weights(self.nodes[1], v)
-        return (Ww[:, :, None] * Wv[:, None, :]).reshape(len(w), -1)
-
-    def maps(self, w: np.ndarray, v: np.ndarray) -> np.ndarray:
-        d = self.Fn.shape[-1]
-        return (self.weights(w, v) @ self.Fflat).reshape(len(w), d, d)
-
-    def _probe_error(self) -> float:
-        rng = np.random.default_rng(12345)  # fixed probes: the result does not depend on where it ran
-        w = self.wmax * rng.uniform(-1, 1, 3)
-        v = self.vmax * rng.uniform(-1, 1, 3) if self.uses_v else np.zeros(3)
-        approx = self.maps(w, v)
-        return max(float(np.abs(approx[i] - self._F(w[i], v[i] if self.uses_v else 0.0)).max()) for i in range(3))
 
 
 def _amplitude_nodes(amps: np.ndarray, n: int, even: bool):
@@ -117,7 +59,7 @@ def _amplitude_nodes(amps: np.ndarray, n: int, even: bool):
     return nodes, W, np.sort(np.argsort(-dist, kind="stable")[:2])
 
 
-def ratio_monodromies(fam: StepMapFamily, kind: str, omega: float, p: int, Ts: float, amps: np.ndarray) -> np.ndarray:
+def ratio_monodromies(fam: RateFamily, kind: str, omega: float, p: int, Ts: float, amps: np.ndarray) -> np.ndarray:
     """Psi(A) = F_{p-1} ... F_0 for each amplitude in ``amps`` (t_k = k Ts), shape (len(amps), d, d)."""
     unit = BaseMotion.single(kind, 1.0, omega)
     d = fam.Fn.shape[-1]
@@ -147,7 +89,7 @@ def ratio_row(loop: SampledLoop, kind: str, omega: float, T: float, p: int, r: i
     axis = np.zeros(3)
     axis[{"roll": 0, "yaw": 1, "pitch": 2}[kind]] = 1.0
     amax = float(np.abs(amps).max())
-    fam = StepMapFamily(sub, axis, amax * omega, amax * omega * omega)
+    fam = RateFamily(sub.step_map, axis, amax * omega, amax * omega * omega, tol=STEP_TOL)
     n = A_NODES
     while True:
         nodes, W, checks = _amplitude_nodes(amps, n, fam.even)

@@ -103,7 +103,7 @@ def simulate_rig(
     """
     Ts = Ts if Ts is not None else 1.0 / cfg.controller.rate_hz
     limit = cfg.controller.current_limit if current_limit is None else current_limit
-    plant = RigPlant(model, cfg, Ts, current_limit=limit)
+    plant = RigPlant(model, cfg, Ts, current_limit=limit, motion=motion)
     ctrl = RigController(cfg, model.gains, Ts, limit, fail_at_s)
     N = plant.N
     t = np.arange(steps + 1) * Ts

@@ -4,10 +4,12 @@
 (:mod:`amb_dynamics.plant_dynamics`) over one sample Ts with the commanded current held, base rates held at their
 sample, the spin speed of the profile at t_k held:
 
-* linear part: exact ZOH, ``expm(Ts Aaug)`` of [[A_p(Omega, Phi), B_i, b_f, B_F, B_u], ...] cached per (rates,
-  spin) as PlantStepper caches its matrices; B_F are held external node forces (gravity, force noise, nonlinear
-  corrections), B_u the unbalance driven by a rotating oscillator [cos; sin](phi + Phi t), so that the
-  unbalance response is exact at constant speed;
+* linear part: exact ZOH, ``expm(Ts Aaug)`` of [[A_p(Omega, Phi), B_i, B_f, B_F, B_u], ...] cached per (rates,
+  spin) as PlantStepper caches its matrices; B_f are the base forcing inputs a1..a4, B_F held external node forces
+  (gravity, force noise, nonlinear corrections), B_u the unbalance driven by a rotating oscillator
+  [cos; sin](phi + Phi t), so that the unbalance response is exact at constant speed.  On the config's base
+  motion about one axis the exponential is interpolated in the base rate (:class:`rate_family.RateFamily`, built
+  once per spin speed and checked at build time to 1e-12 of each column) instead of computed per step;
 * unbalance: U Phi^2 (cos, sin)(phi + phase) at each disk in the base frame, plus the tangential term
   U dPhi/dt (-sin, cos) during a ramp (the base rotation's share of the rotor's angle is neglected);
 * gravity g_B = R^T (0, -g, 0), R the base attitude integrated from the held rates (exact rotation of each step),
@@ -36,6 +38,8 @@ import scipy.linalg as sla
 from .config import RotorConfig
 from .config_rig import disk_unbalance
 from .fe import dof_index
+from .motion import BaseMotion
+from .rate_family import RateFamily, single_axis_bounds
 from .rig_forces import RigForces
 from .sampled import CACHE_LIMIT, PlantStepper
 from .structure import StructuralModel
@@ -44,6 +48,11 @@ from .system import coefficients_from_rates, forcing_from_rates
 BLOCK = 256  # steps of noise per Philox draw
 SPIN_GRID = 2.0 * math.pi / 30.0  # rad/s (2 rpm): during a ramp the step matrices are interpolated between these
 RPM = math.pi / 30.0
+FAMILY_LIMIT = 4  # step-exponential interpolants kept (spin speeds x sub-step lengths)
+# per column, relative: an exact expm of the real rig's plant rows itself differs by ~3e-13 between rate values
+# one rounding apart (entries up to 1e4 beside 1e-5), so a tighter bound would measure rounding, not interpolation
+FAMILY_TOL = 1e-12
+BOX_MARGIN = 1.05  # the interpolants cover 5 % more than the config motion's largest rates (a measured IMU)
 
 
 @dataclass(frozen=True)
@@ -87,6 +96,8 @@ class RigPlant:
     Ts : sample period (s)
     forcing : base-motion forcing (docs/physics.md#forcing); None = cfg.base_forcing
     current_limit : amplifier clamp (A); None = controller.current_limit
+    motion : the base motion whose rates the step interpolants cover; None = cfg.base_motion (other rates are
+        stepped exactly)
     """
 
     def __init__(
@@ -96,6 +107,7 @@ class RigPlant:
         Ts: float,
         forcing: bool | None = None,
         current_limit: float | None = None,
+        motion: BaseMotion | None = None,
     ):
         self.lin = lin = PlantStepper(model, cfg, Ts, forcing)
         self.model, self.cfg, self.Ts, self.n, self.N = model, cfg, Ts, model.n, lin.N
@@ -141,6 +153,12 @@ class RigPlant:
         )
         self._cache: dict[bytes, tuple] = {}
         self._last: tuple = (None, None)
+        self._nf = 4 if np.any(lin.Bf) else 0  # base forcing inputs a1..a4 (docs/physics.md#forcing)
+        motion = BaseMotion.from_config(cfg.base_motion) if motion is None else motion
+        bounds = single_axis_bounds(motion.harmonics)
+        self._axis = None if bounds is None else bounds[0]
+        self._box = None if bounds is None else (BOX_MARGIN * bounds[1], BOX_MARGIN * bounds[2])
+        self._families: dict[tuple[float, float], RateFamily] = {}
         self._noise_block = -1
         self._noise = np.zeros((BLOCK, 4 + self.noise_f.size))
         self.reset()
@@ -166,7 +184,10 @@ class RigPlant:
 
     # -- matrices -----------------------------------------------------------------------------------------
     def matrices(self, Omega: np.ndarray, dOmega: np.ndarray, spin: float, h: float | None = None):
-        """(E, Gamma_i, g, Gamma_F, Gamma_u) of a (sub-)step h (default Ts) at held rates and spin."""
+        """(E, Gamma_i, g, Gamma_F, Gamma_u) of a (sub-)step h (default Ts) at held rates and spin.
+
+        On a moving base about one axis the exponential comes from the step's RateFamily (interpolated, checked to
+        STEP_TOL per column at build time); otherwise, and for rates outside the family's box, it is exact."""
         h = self.Ts if h is None else h
         key = np.concatenate([Omega, dOmega, (spin, h)]).tobytes()
         hit = self._cache.get(key)
@@ -174,26 +195,55 @@ class RigPlant:
             return hit
         if self._last[0] == key:  # prepared ahead of the step while the cache is full
             return self._last[1]
-        lin, N = self.lin, self.N
         Om, dOm = np.asarray(Omega, float), np.asarray(dOmega, float)
-        c = coefficients_from_rates(Om, dOm, spin)
-        a = forcing_from_rates(Om, dOm, spin)
-        m = self.BF.shape[1]
-        size = N + 4 + 1 + m + 2
-        aug = np.zeros((size, size))
-        aug[:N, :N] = lin.Ap0 + np.tensordot(c[lin.Ap_idx], lin.Ap_stack, axes=1)
-        aug[:N, N : N + 4] = lin.Bp
-        aug[:N, N + 4] = lin.Bf @ a
-        aug[:N, N + 5 : N + 5 + m] = self.BF
-        o = N + 5 + m  # unbalance oscillator (cos, sin): d/dt = Phi [[0, -1], [1, 0]]
-        aug[o, o + 1], aug[o + 1, o] = -spin, spin
-        aug[:N, o : o + 2] = self._unbalance_columns(spin)
-        P = sla.expm(h * aug)
-        out = (P[:N, :N], P[:N, N : N + 4], P[:N, N + 4], P[:N, N + 5 : o], P[:N, o : o + 2])
-        if len(self._cache) < CACHE_LIMIT:
+        fam = self._family(Om, dOm, spin, h)
+        if fam is not None:
+            P = fam.at(float(Om[self._axis]), float(dOm[self._axis]))
+        else:
+            P = self._exponential(Om, dOm, spin, h)
+        N, nf, m = self.N, self._nf, self.BF.shape[1]
+        o = N + 4 + nf + m
+        g = P[:, N + 4 : N + 4 + nf] @ forcing_from_rates(Om, dOm, spin) if nf else np.zeros(N)
+        out = (P[:, :N], P[:, N : N + 4], g, P[:, N + 4 + nf : o], P[:, o : o + 2])
+        if fam is None and len(self._cache) < CACHE_LIMIT:  # an interpolated step costs less than a lookup
             self._cache[key] = out
         self._last = (key, out)
         return out
+
+    def _exponential(self, Om: np.ndarray, dOm: np.ndarray, spin: float, h: float) -> np.ndarray:
+        """The plant rows of expm(h Aaug): [E, Gamma_i, Gamma_f (forcing a1..a4), Gamma_F, Gamma_u], N x columns."""
+        lin, N, nf = self.lin, self.N, self._nf
+        c = coefficients_from_rates(Om, dOm, spin)
+        m = self.BF.shape[1]
+        size = N + 4 + nf + m + 2
+        aug = np.zeros((size, size))
+        aug[:N, :N] = lin.Ap0 + np.tensordot(c[lin.Ap_idx], lin.Ap_stack, axes=1)
+        aug[:N, N : N + 4] = lin.Bp
+        aug[:N, N + 4 : N + 4 + nf] = lin.Bf[:, :nf]
+        aug[:N, N + 4 + nf : N + 4 + nf + m] = self.BF
+        o = N + 4 + nf + m  # unbalance oscillator (cos, sin): d/dt = Phi [[0, -1], [1, 0]]
+        aug[o, o + 1], aug[o + 1, o] = -spin, spin
+        aug[:N, o : o + 2] = self._unbalance_columns(spin)
+        return sla.expm(h * aug)[:N]
+
+    def _family(self, Om: np.ndarray, dOm: np.ndarray, spin: float, h: float) -> RateFamily | None:
+        """The interpolant of the step exponential at (spin, h) if the rates lie on the config motion's axis, in its
+        box (built on first use; FAMILY_LIMIT kept); None on a static base or off the axis (the exact path)."""
+        if self._axis is None:
+            return None
+        w, v = float(Om[self._axis]), float(dOm[self._axis])
+        if np.count_nonzero(Om) + np.count_nonzero(dOm) != (w != 0.0) + (v != 0.0) or not (w or v):
+            return None
+        key = (spin, h)
+        fam = self._families.get(key)
+        if fam is None:
+            e = np.eye(3)[self._axis]
+            F = lambda a, b: self._exponential(a, b, spin, h)  # noqa: E731
+            fam = RateFamily(F, e, *self._box, tol=FAMILY_TOL, per_column=True)
+            if len(self._families) >= FAMILY_LIMIT:
+                self._families.pop(next(iter(self._families)))
+            self._families[key] = fam
+        return fam if fam.covers(w, v) else None
 
     def step_matrices(self, Omega: np.ndarray, dOmega: np.ndarray, spin: float, h: float | None = None):
         """The matrices of a step at ``spin``: exact at a constant speed; during a ramp linear interpolation between
