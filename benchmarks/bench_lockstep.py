@@ -15,6 +15,8 @@
    ``trigger:=timer``) and missed deadlines; then the default sample-triggered controller, whose update period
    follows the samples' arrival (sample clock + DDS latency jitter) and its sample-to-command latency.
    Goals: >= 2,000 lockstep steps/s; realtime p99 period error < 100 us.
+4. Lockstep with the real-rig default config (every effect on, the default pitching base), alternating with the
+   paper config's normal runs: goal >= 0.9 x its steps/s.
 
 ``main()`` prints a small table and returns a dict (benchmarks/run_all.py calls it).
 """
@@ -37,6 +39,7 @@ BIN = Path(sys.executable).parent
 PAPER = ["--config", str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")]
 GOAL_STEPS_PER_S = 2000.0
 GOAL_P99_US = 100.0
+GOAL_REAL_RIG_RATIO = 0.9  # the real-rig default's lockstep steps/s over the paper config's, same run
 
 
 def _env() -> dict:
@@ -119,8 +122,8 @@ def pingpong(n: int) -> float:
 
 
 # -- amb-rig runs -------------------------------------------------------------------------------------
-def rig(args: list[str], timeout: float = 600.0, require_ok: bool = True) -> dict:
-    out = subprocess.run([str(BIN / "amb-rig"), "run", "--json", *PAPER, *args], env=_env(), capture_output=True,
+def rig(args: list[str], timeout: float = 600.0, require_ok: bool = True, config: list[str] = PAPER) -> dict:
+    out = subprocess.run([str(BIN / "amb-rig"), "run", "--json", *config, *args], env=_env(), capture_output=True,
                          text=True, timeout=timeout)  # fmt: skip
     try:
         summary = json.loads(out.stdout)
@@ -131,9 +134,12 @@ def rig(args: list[str], timeout: float = 600.0, require_ok: bool = True) -> dic
     return summary
 
 
-def lockstep(duration: float, rt_priority: int) -> dict:
-    s = rig(["--duration", str(duration), "--no-monitor", "--rt-priority", str(rt_priority),
-             "--set", "controller.current_limit=1e9"])  # fmt: skip
+def lockstep(duration: float, rt_priority: int, real_rig: bool = False) -> dict:
+    if real_rig:  # the default config: its own current limit (below the bias), every effect on
+        s = rig(["--duration", str(duration), "--no-monitor", "--rt-priority", str(rt_priority)], config=[])
+    else:
+        s = rig(["--duration", str(duration), "--no-monitor", "--rt-priority", str(rt_priority),
+                 "--set", "controller.current_limit=1e9"])  # fmt: skip
     return {"steps": s["steps"], "steps_per_s": s["steps_per_s"], "wall_s": s["wall_s"],
             "scheduling": s["nodes"]["plant"]["values"]["scheduling"]}  # fmt: skip
 
@@ -162,17 +168,18 @@ def realtime_1khz(trigger: str, duration: float = 5.0) -> dict:
     return out
 
 
-def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 2) -> dict:
+def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> dict:
     pp1 = pingpong(round_trips)
-    runs = {0: [], 20: []}
+    runs = {0: [], 20: [], "real": []}
     for _ in range(repeats):  # alternating: this machine's load drifts
         for prio in runs:
-            runs[prio].append(lockstep(duration, prio))
+            runs[prio].append(lockstep(duration, 0, real_rig=True) if prio == "real" else lockstep(duration, prio))
     pp2 = pingpong(round_trips)
     timer, sample = realtime_1khz("timer"), realtime_1khz("sample")
     base = 0.5 * (pp1 + pp2)
     normal = statistics.median(r["steps_per_s"] for r in runs[0])
     fifo = statistics.median(r["steps_per_s"] for r in runs[20])
+    real = statistics.median(r["steps_per_s"] for r in runs["real"])
     timers_p99 = max(timer["p99_us"], timer["plant_p99_us"])
     result = {
         "pingpong_round_trips_per_s": base,
@@ -185,6 +192,10 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 2) -> di
         "lockstep_fifo_scheduling": runs[20][-1]["scheduling"],
         "lockstep_fifo_to_pingpong_ratio": fifo / base,
         "lockstep_goal_met": {"normal": normal >= GOAL_STEPS_PER_S, "sched_fifo": fifo >= GOAL_STEPS_PER_S},
+        "lockstep_real_rig_steps_per_s": real,
+        "lockstep_real_rig_runs": [r["steps_per_s"] for r in runs["real"]],
+        "lockstep_real_rig_to_paper_ratio": real / normal,
+        "lockstep_real_rig_goal_met": real >= GOAL_REAL_RIG_RATIO * normal,
         "realtime_1khz_timer": timer,
         "realtime_1khz_sample": sample,
         "realtime_goal_met": timers_p99 < GOAL_P99_US,
@@ -198,6 +209,10 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 2) -> di
         ("lockstep, 3 processes, --rt-priority 20", f"{fifo:,.0f}",
          f"steps/s, {fifo / base:.2f} x ping-pong; runs {', '.join(f'{r:,.0f}' for r in result['lockstep_fifo_runs'])}"
          f"; {result['lockstep_fifo_scheduling']}"),
+        ("lockstep, real-rig default config (every effect on)", f"{real:,.0f}",
+         f"steps/s, {real / normal:.2f} x the paper config's normal runs (goal >= {GOAL_REAL_RIG_RATIO:g}: "
+         f"{'met' if result['lockstep_real_rig_goal_met'] else 'MISSED'}); runs "
+         f"{', '.join(f'{r:,.0f}' for r in result['lockstep_real_rig_runs'])}"),
         ("lockstep goal >= 2,000 steps/s", "", f"normal {'met' if normal >= GOAL_STEPS_PER_S else 'MISSED'}, "
          f"SCHED_FIFO {'met' if fifo >= GOAL_STEPS_PER_S else 'MISSED'}"),
         ("realtime 1 kHz timer p50/p99/max (us): controller", f"{timer['p50_us']:.0f}/{timer['p99_us']:.0f}/"
@@ -212,6 +227,9 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 2) -> di
     ]  # fmt: skip
     record("lockstep, 3 node processes, normal scheduling", result["lockstep_runs"], "steps/s", goal=">= 2,000")
     record("lockstep, 3 node processes, --rt-priority 20", result["lockstep_fifo_runs"], "steps/s", goal=">= 2,000")
+    record("lockstep, real-rig default config, normal scheduling", result["lockstep_real_rig_runs"], "steps/s")
+    record_ratio("lockstep real rig / paper config (normal)", result["lockstep_real_rig_runs"], result["lockstep_runs"],
+                 goal=f">= {GOAL_REAL_RIG_RATIO:g}")  # fmt: skip
     record("bare rclpy ping-pong, before and after", [pp1, pp2], "round trips/s")
     record_ratio("lockstep (normal) / ping-pong", result["lockstep_runs"], [base] * len(result["lockstep_runs"]))
     record("realtime 1 kHz timer period error p99, controller", timer["p99_us"], "us", goal="< 100")

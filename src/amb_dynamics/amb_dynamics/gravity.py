@@ -9,6 +9,7 @@ equilibrium alone, whatever the shaft stiffness or the controller gains.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +30,34 @@ def gravity_base_frame(quat_xyzw: np.ndarray | None, g: float = 9.81) -> np.ndar
         return down
     q = np.asarray(quat_xyzw, dtype=float)
     return Rotation.from_quat(q.reshape(-1, 4)).inv().apply(down).reshape((*q.shape[:-1], 3))
+
+
+def gravity_yz(q: tuple[float, float, float, float], g: float) -> tuple[float, float]:
+    """(Y, Z) components of g_B = R^T (0, -g, 0) for one base->inertial quaternion q = (x, y, z, w), in floats (the
+    plant's per-step path; :func:`gravity_base_frame` is the array form)."""
+    x, y, z, w = q
+    # second row of R (inertial Y in base axes) times -g: R^T e_Y = (R[1, 0], R[1, 1], R[1, 2])
+    return -g * (1.0 - 2.0 * (x * x + z * z)), -g * 2.0 * (y * z - w * x)
+
+
+def attitude_step(q: tuple[float, ...], w: tuple[float, float, float], dt: float) -> tuple[float, ...]:
+    """The attitude q (x, y, z, w; base->inertial) after turning at the body rate w (rad/s) for dt: q (x) exp(w dt/2),
+    the exact rotation of a rate held over the step, renormalised."""
+    wx, wy, wz = w
+    norm = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if norm == 0.0:
+        return q
+    s = math.sin(0.5 * norm * dt) / norm
+    bx, by, bz, bw = wx * s, wy * s, wz * s, math.cos(0.5 * norm * dt)
+    ax, ay, az, aw = q
+    out = (
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    )
+    n = math.sqrt(sum(c * c for c in out))
+    return tuple(c / n for c in out)
 
 
 def translation_patterns(fe: FEModel) -> np.ndarray:

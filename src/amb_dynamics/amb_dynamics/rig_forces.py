@@ -60,12 +60,15 @@ class RigForces:
         self.nonlinear = b.force_law == "nonlinear"
         self.touchdown = bool(td.nodes)
         self.active = self.nonlinear or self.touchdown
+        # the law's current is the amplifier's state when it has one: then the forces do not need the command
+        self.uses_command = self.nonlinear and layout.amp is None
         self.n, self.layout = model.n, layout
         fe = model.fe
         Psi = model.basis if model.basis is not None else np.eye(fe.n)
         rows = [dof_index(node, a) for node in self.nodes for a in (0, 1)]
         self.T = Psi[rows]  # (2 x nodes, n): node (y, z) from q
         self.amb_idx = np.array([2 * self.nodes.index(nd) + a for nd in self.amb_nodes for a in (0, 1)])
+        self.T_amb = np.ascontiguousarray(self.T[self.amb_idx])
         self.td_idx = [self.nodes.index(nd) for nd in self.td_nodes]
         self.td_rows = np.array([2 * j + a for j in self.td_idx for a in (0, 1)], dtype=int)
         self.law = BearingLaw.from_config(b) if self.nonlinear else None
@@ -99,6 +102,12 @@ class RigForces:
                 return True
         return False
 
+    def amb_correction(self, x: np.ndarray, i: np.ndarray | None) -> np.ndarray:
+        """The bearing law's departure from its linearisation ki i + |ks| x at the AMB axes (N, 4): magnet.BearingLaw
+        at the amplifier's current (its state, or the held command i when the amplifier is ideal)."""
+        y = self.T_amb @ x[: self.n]
+        return self.law.correction(y, x[self.layout.amp] if self.layout.amp is not None else i)
+
     def node_forces(
         self, x: np.ndarray, i: np.ndarray, spin: float, t: float, log: ContactLog | None, near: bool = True
     ) -> np.ndarray:
@@ -108,10 +117,8 @@ class RigForces:
         n = self.n
         f = np.zeros(2 * len(self.nodes))
         r = self.T @ x[:n]
-        if self.nonlinear:  # magnet.BearingLaw: the law's departure from its linearisation ki i + |ks| x
-            y = r[self.amb_idx]
-            ic = x[self.layout.amp] if self.layout.amp is not None else i
-            f[self.amb_idx] += self.law.force(y, ic) - self.law.linear_force(y, ic)
+        if self.nonlinear:
+            f[self.amb_idx] += self.amb_correction(x, i)
         if self.touchdown and near:  # touchdown.contact_forces at every backup-bearing node at once
             v = self.T @ x[n : 2 * n]
             rows = self.td_rows

@@ -38,16 +38,17 @@ import scipy.linalg as sla
 from .config import RotorConfig
 from .config_rig import disk_unbalance
 from .fe import dof_index
+from .gravity import attitude_step, gravity_yz
 from .motion import BaseMotion
 from .rate_family import RateFamily, single_axis_bounds
 from .rig_forces import RigForces
 from .sampled import CACHE_LIMIT, PlantStepper
+from .spin import SpinProfile
 from .structure import StructuralModel
 from .system import coefficients_from_rates, forcing_from_rates
 
 BLOCK = 256  # steps of noise per Philox draw
 SPIN_GRID = 2.0 * math.pi / 30.0  # rad/s (2 rpm): during a ramp the step matrices are interpolated between these
-RPM = math.pi / 30.0
 FAMILY_LIMIT = 4  # step-exponential interpolants kept (spin speeds x sub-step lengths)
 # per column, relative: an exact expm of the real rig's plant rows itself differs by ~3e-13 between rate values
 # one rounding apart (entries up to 1e4 beside 1e-5), so a tighter bound would measure rounding, not interpolation
@@ -55,36 +56,30 @@ FAMILY_TOL = 1e-12
 BOX_MARGIN = 1.05  # the interpolants cover 5 % more than the config motion's largest rates (a measured IMU)
 
 
-@dataclass(frozen=True)
-class SpinProfile:
-    """The spin profile of config ``spin`` per step (scalars; spin.spin_state is the array form)."""
+@dataclass
+class _Plan:
+    """The command-free part of one step (RigPlant._plan): matrices, held forces, free response, next angles."""
 
-    start: float  # rad/s
-    end: float  # rad/s
-    rate: float  # rad/s^2, signed
+    k: int
+    x: np.ndarray
+    rates: bytes  # Omega, dOmega
+    near: bool
+    m: int  # sub-steps
+    h: float
+    E: np.ndarray
+    G: np.ndarray
+    GFn: np.ndarray  # node-force columns
+    GFa: np.ndarray  # their AMB-axis columns
+    Gu: np.ndarray
+    rot: np.ndarray  # the unbalance oscillator over one sub-step
+    free: np.ndarray  # g + Gamma_F held
+    cs: np.ndarray  # (cos, sin) of the spin angle
+    base0: np.ndarray | None = None  # E x + free + Gu cs (one sub-step)
+    f0: np.ndarray | None = None  # the bearing law's correction at x (when it does not need the command)
+    angles: tuple = ()
 
-    @classmethod
-    def from_config(cls, cfg: RotorConfig) -> SpinProfile:
-        sp = cfg.spin
-        if sp.profile == "ramp":
-            sign = 1.0 if sp.end_rpm > sp.start_rpm else -1.0
-            return cls(sp.start_rpm * RPM, sp.end_rpm * RPM, sign * sp.rate_rpm_s * RPM)
-        return cls(cfg.spin_rad_s, cfg.spin_rad_s, 0.0)
-
-    @property
-    def ramp_time(self) -> float:
-        """Duration of the ramp (s); 0 for a constant speed."""
-        return 0.0 if self.rate == 0.0 else (self.end - self.start) / self.rate
-
-    def speed(self, t: float) -> float:
-        """phi_dot (rad/s) at time t (s)."""
-        if self.rate == 0.0 or t >= self.ramp_time:
-            return self.end
-        return self.start + self.rate * t
-
-    def accel(self, t: float) -> float:
-        """phi_ddot (rad/s^2) at time t: the ramp rate while ramping, else 0."""
-        return self.rate if self.rate != 0.0 and t < self.ramp_time else 0.0
+    def fits(self, k: int, x: np.ndarray, Omega: np.ndarray, dOmega: np.ndarray) -> bool:
+        return k == self.k and x is self.x and np.concatenate([Omega, dOmega]).tobytes() == self.rates
 
 
 class RigPlant:
@@ -168,7 +163,8 @@ class RigPlant:
         """Step counter, spin angle and base attitude back to t = 0."""
         self.k = 0
         self.phi = 0.0  # spin angle relative to the base (rad)
-        self.quat = np.array([0.0, 0.0, 0.0, 1.0])  # base -> inertial (x, y, z, w)
+        self.quat = (0.0, 0.0, 0.0, 1.0)  # base -> inertial (x, y, z, w)
+        self._pre: _Plan | None = None  # the coming step's command-free part (prepare)
         self.contact = self.forces.new_contact_log()
         self._i_prev = np.zeros(4)
         self.saturated = 0  # steps with the command clamped or slew-limited
@@ -270,14 +266,19 @@ class RigPlant:
         return cols
 
     # -- one step -----------------------------------------------------------------------------------------
-    def prepare(self, Omega: np.ndarray, dOmega: np.ndarray) -> None:
-        """Compute (cache) the matrices of the coming step ahead of it (the plant node, while it waits)."""
-        self.step_matrices(Omega, dOmega, self.spin_speed())
+    def prepare(self, Omega: np.ndarray, dOmega: np.ndarray, x: np.ndarray | None = None) -> None:
+        """Everything of the coming step that does not need its command, ahead of it (the plant node, while the
+        controller computes): the step's matrices; given the state x, also the held forces, the free response,
+        the state-dependent forces at the step's start and the next spin angle and attitude (``_plan``)."""
+        if x is None or self.linear_only:
+            self.step_matrices(Omega, dOmega, self.spin_speed())
+        else:
+            self._pre = self._plan(x, Omega, dOmega, self.spin_speed())
 
     def applied_current(self, x: np.ndarray, i_cmd: np.ndarray) -> np.ndarray:
         """Command after the current clamp and the voltage (slew) limit (i_cmd itself when neither acts)."""
         i = i_cmd
-        if np.any(np.abs(i_cmd) > self.limit):
+        if np.abs(i_cmd).max() > self.limit:
             i = np.clip(i_cmd, -self.limit, self.limit)
         if self.slew is None:
             return i
@@ -285,33 +286,32 @@ class RigPlant:
         if amp is not None:  # current loop: slope wa (i_c - i_a) limited to V/L
             ia = x[amp]
             span = self.slew / self.lin.dynamics.amplifier_rad_s
-            return np.clip(i, ia - span, ia + span)
+            return np.clip(i, ia - span, ia + span) if np.abs(i - ia).max() > span else i
         return i  # ideal amplifier: the rate limit acts on the held current, see step()
 
     def step(self, x: np.ndarray, i_cmd: np.ndarray, Omega: np.ndarray, dOmega: np.ndarray) -> np.ndarray:
         """x_{k+1} from x_k, the held command (A) and the base rates of sample k; advances k, phi, attitude."""
         spin = self.spin_speed()
         i = self.applied_current(x, i_cmd)
-        self.max_command = max(self.max_command, float(np.max(np.abs(i_cmd))))
+        self.max_command = max(self.max_command, float(np.abs(i_cmd).max()))
         if i is not i_cmd and not np.array_equal(i, i_cmd):  # clamped or slew-limited this step
             self.saturated += 1
         if self.linear_only:
             E, G, g, _, _ = self.step_matrices(Omega, dOmega, spin)
             x_next = E @ x + G @ i + g
+            self.phi, self.quat = self._next_angles(Omega, dOmega, spin)
         else:
             x_next = self._step_effects(x, i, Omega, dOmega, spin)
-        self._advance_angles(Omega, dOmega, spin)
+        self.k += 1
         return x_next
 
-    def _step_effects(self, x, i, Omega, dOmega, spin):
-        if self.slew is not None and self.lin.layout.amp is None:
-            i = np.clip(i, self._i_prev - self.slew * self.Ts, self._i_prev + self.slew * self.Ts)
-        self._i_prev = i
+    def _plan(self, x, Omega, dOmega, spin) -> _Plan:
+        """The command-free part of step k from state x (the same arithmetic whether prepared ahead or not)."""
         held = np.zeros(self.BF.shape[1])
         noise = self.noise_row(self.k)
         held[:-2] += self.noise_f * noise[4:]
         if self.g:
-            held[-2:] = _gravity_yz(self.quat, self.g)
+            held[-2:] = gravity_yz(self.quat, self.g)
         accel = self.spin.accel(self.t)
         if accel and self.unb:  # tangential unbalance force during a ramp, held over the step
             for j, U, ph in self.unb:
@@ -324,33 +324,52 @@ class RigPlant:
         h = self.Ts / m
         E, G, g, GF, Gu = self.step_matrices(Omega, dOmega, spin, h)
         rot = np.array([[math.cos(spin * h), -math.sin(spin * h)], [math.sin(spin * h), math.cos(spin * h)]])
-        const = G @ i + g + GF @ held
-        GFn = GF[:, :-2]  # node-force columns (the last two are gravity)
-        for j in range(m):
-            base = E @ x + const + Gu @ cs
-            if self.forces.active:
+        free = g + GF @ held
+        GFn = GF[:, :-2]
+        rates = np.concatenate([Omega, dOmega]).tobytes()
+        plan = _Plan(self.k, x, rates, near, m, h, E, G, GFn, GFn[:, self.forces.amb_idx], Gu, rot, free, cs)
+        if m == 1:
+            plan.base0 = E @ x + free + Gu @ cs
+            if self.forces.nonlinear and not near and not self.forces.uses_command:
+                plan.f0 = self.forces.amb_correction(x, None)
+        plan.angles = self._next_angles(Omega, dOmega, spin)
+        return plan
+
+    def _step_effects(self, x, i, Omega, dOmega, spin):
+        if self.slew is not None and self.lin.layout.amp is None:
+            i = np.clip(i, self._i_prev - self.slew * self.Ts, self._i_prev + self.slew * self.Ts)
+        self._i_prev = i
+        pre, self._pre = self._pre, None
+        if pre is None or not pre.fits(self.k, x, Omega, dOmega):
+            pre = self._plan(x, Omega, dOmega, spin)
+        Gi = pre.G @ i
+        cs, h, near = pre.cs, pre.h, pre.near
+        for j in range(pre.m):
+            base = pre.base0 + Gi if j == 0 and pre.base0 is not None else pre.E @ x + (pre.free + Gi) + pre.Gu @ cs
+            if near:  # touchdown possible: every force node, contacts logged
                 t = self.t + j * h
                 f0 = self.forces.node_forces(x, i, spin, t, self.contact, near)
-                x_pred = base + GFn @ f0
+                x_pred = base + pre.GFn @ f0
                 f1 = self.forces.node_forces(x_pred, i, spin, t + h, None, near)
-                x = base + GFn @ (0.5 * (f0 + f1))
+                x = base + pre.GFn @ (0.5 * (f0 + f1))
+            elif self.forces.nonlinear:  # the bearing law's correction at the four AMB axes only
+                f0 = pre.f0 if pre.f0 is not None else self.forces.amb_correction(x, i)
+                f1 = self.forces.amb_correction(base + pre.GFa @ f0, i)
+                x = base + pre.GFa @ (0.5 * (f0 + f1))
             else:
                 x = base
-            cs = rot @ cs
+            cs = pre.rot @ cs
+        self.phi, self.quat = pre.angles
         return x
 
-    def _advance_angles(self, Omega, dOmega, spin):
+    def _next_angles(self, Omega, dOmega, spin) -> tuple[float, tuple]:
+        """Spin angle and base attitude at step k + 1 (the attitude turned by the midpoint rate, exactly)."""
         accel = self.spin.accel(self.t)
-        self.phi = math.fmod(self.phi + spin * self.Ts + 0.5 * accel * self.Ts * self.Ts, 2 * math.pi)
-        if self.g and (np.any(Omega) or np.any(dOmega)):  # exact rotation of the midpoint rate over the step
-            w = np.asarray(Omega, float) + 0.5 * self.Ts * np.asarray(dOmega, float)
-            ang = float(np.linalg.norm(w)) * self.Ts
-            if ang > 0.0:
-                ax = w / np.linalg.norm(w) * math.sin(ang / 2)
-                dq = np.array([*ax, math.cos(ang / 2)])
-                self.quat = _qmul(self.quat, dq)
-                self.quat /= np.linalg.norm(self.quat)
-        self.k += 1
+        phi = math.fmod(self.phi + spin * self.Ts + 0.5 * accel * self.Ts * self.Ts, 2 * math.pi)
+        if not self.g:
+            return phi, self.quat
+        w = tuple(float(o) + 0.5 * self.Ts * float(d) for o, d in zip(Omega, dOmega, strict=True))
+        return phi, attitude_step(self.quat, w, self.Ts)
 
     # -- measurement --------------------------------------------------------------------------------------
     def measure(self, x: np.ndarray) -> np.ndarray:
@@ -379,24 +398,3 @@ class RigPlant:
     @property
     def labels(self) -> tuple[str, ...]:
         return self.lin.labels
-
-
-def _gravity_yz(q: np.ndarray, g: float) -> tuple[float, float]:
-    """(Y, Z) components of g_B = R^T (0, -g, 0) for the base->inertial quaternion q = (x, y, z, w)."""
-    x, y, z, w = q
-    # second row of R (inertial Y in base axes) times -g: R^T e_Y = (R[1, 0], R[1, 1], R[1, 2])
-    return -g * (1.0 - 2.0 * (x * x + z * z)), -g * 2.0 * (y * z - w * x)
-
-
-def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Quaternion product a b, (x, y, z, w)."""
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return np.array(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ]
-    )

@@ -40,7 +40,7 @@ def run_lockstep(node) -> None:
             node.drain()
             if mats is None and k in node.rates:
                 mats = node.rates.pop(k)
-                stepper.prepare(mats[:3], mats[3:])  # the step's matrices, while the controller computes
+                stepper.prepare(mats[:3], mats[3:], node.x)  # the command-free part, while the controller computes
             if mats is not None and k in node.commands:
                 break
             if node.stop.is_set:
