@@ -64,6 +64,7 @@ def build_summary(run: dict, children: list[Child], collector, errors: list[str]
         out["stability"] = {"verdict": v.get("verdict", "none"), "unstable": v.get("unstable") == "true",
                             "rho": _num(v, "rho"), "rho_std": _num(v, "rho std"),
                             "periods_used": _num(v, "periods used"), "flag_raised_at_s": _num(v, "flag raised at (s)"),
+                            "model_rho": _num(v, "model rho"), "model_mismatch": v.get("model mismatch") == "true",
                             "message": mon["message"]}  # fmt: skip
     return out
 

@@ -128,6 +128,9 @@ def _result(summary: dict, args) -> tuple[str, str, list[str]]:
         if n := _f(values, f"foreign {topic}"):  # well-formed, another run token: not applied (docs/topics.md)
             warnings.append(f"the {who} rejected {n:.0f} {what} with another run token (another run or an intruder "
                             "on this ROS_DOMAIN_ID)")  # fmt: skip
+    if mon.get("model mismatch") == "true":
+        warnings.append(f"the stability estimate disagrees with the config's model (model rho {mon.get('model rho')}): "
+                        "is the rig the config?")  # fmt: skip
     if foreign := summary.get("foreign_diagnostics"):
         names = ", ".join(f"{k} ({n})" for k, n in sorted(foreign.items()))
         warnings.append(f"ignored /diagnostics from processes outside this run: {names}")

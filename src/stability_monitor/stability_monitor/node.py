@@ -17,9 +17,10 @@ publishes  /stability/multipliers  std_msgs/Float64MultiArray, layout dims [k, 2
                                    k = 0 when the data do not identify the map.  One message per refit.
 publishes  /stability/unstable     std_msgs/Bool, RELIABLE + TRANSIENT_LOCAL depth 1 (latched): the verdict
                                    flag; False at start, republished on every change
-publishes  /diagnostics            rho, its standard error and confidence, periods used, verdict, rank, period;
-                                   level OK (stable), WARN (marginal, collecting, insufficient excitation,
-                                   waiting for the period), ERROR (unstable)
+publishes  /diagnostics            rho, its standard error and confidence, periods used, verdict, rank, period,
+                                   the model value (model_check.py); level OK (stable), WARN (marginal,
+                                   collecting, insufficient excitation, waiting for the period, model
+                                   mismatch), ERROR (unstable)
 
 Time is the stamp of the samples (t_k of the lockstep /clock, or of the replayed bag): the estimates depend on
 the data only, never on wall time, so a replay gives the live run's output.  The monitor only reads the lockstep
@@ -50,6 +51,7 @@ from amb_ros.runtime import run_node
 from amb_ros.scheduling import PRIORITIES, consumer_priority
 
 from .messages import JointStateInput, StateBlockInput, multipliers_message
+from .model_check import ModelValue
 from .pipeline import FORCING_CHOICES, MonitorPipeline, MonitorSettings, synchronous_harmonics
 
 MULTIPLIERS, UNSTABLE = m.MULTIPLIERS, m.UNSTABLE
@@ -90,6 +92,8 @@ def specs() -> list[ParamSpec]:
                   "1000-deep history holds the samples meanwhile)", "s", 0.0, 1.0),
         ParamSpec("priority", "idle", "scheduling of every thread, DDS's included: idle (SCHED_IDLE: only CPU time "
                   "the loop leaves; a refit never preempts it), low (niceness +5) or normal", choices=PRIORITIES),
+        ParamSpec("model_check", True, "compare the estimate with the config's model value (its digital loop on its "
+                  "base motion, computed in the background at start): WARN 'model mismatch' when they disagree"),
         param_at_spec(),
     ]  # fmt: skip
 
@@ -148,6 +152,7 @@ class MonitorNode(RigNode):
         self.last_t_ns: int | None = None
         self.error = ""
         self.live = LiveParams(self, [s for s in specs() if s.runtime], self.retune)
+        self.model = ModelValue(self.cfg) if p["model_check"] else None
 
     def retune(self, changed: dict) -> None:
         """Runtime margin/hysteresis (amb_ros.live_params): from the sample at which the change applies."""
@@ -225,6 +230,8 @@ class MonitorNode(RigNode):
     # -- loop -----------------------------------------------------------------------------------------
     def run(self) -> int:
         self.scheduling = consumer_priority(self.p["priority"])
+        if self.model is not None:  # after the scheduling: the thread inherits it
+            self.model.start()
         batch = self.p["batch_s"]
         while not self.stop.is_set:
             self.waiter.wait(1.0)
@@ -264,7 +271,19 @@ class MonitorNode(RigNode):
         if not est.fit.excited:
             return WARN, f"{est.verdict.replace('_', ' ')}: {est.fit.reason}"
         level = OK if est.verdict == "stable" else WARN
-        return level, f"{est.verdict}: rho = {est.rho:.4f} +- {est.fit.rho_std:.2g} over {est.periods} periods"
+        text = f"{est.verdict}: rho = {est.rho:.4f} +- {est.fit.rho_std:.2g} over {est.periods} periods"
+        if mismatch := self.mismatch():
+            return WARN, f"{text}; {mismatch}"
+        return level, text
+
+    def mismatch(self) -> str | None:
+        """The model check of the latest converged estimate (a full window of periods), if it disagrees."""
+        pl, est = self.pipeline, self.pipeline.latest
+        if self.model is None or est is None or not est.fit.excited or pl.period_estimate is None:
+            return None
+        if est.periods < self.settings.window:
+            return None
+        return self.model.mismatch(est.rho, est.fit.rho_std, pl.period_estimate.period)
 
     def values(self) -> dict[str, str]:
         out = self.common_values()
@@ -288,6 +307,11 @@ class MonitorNode(RigNode):
                 if f.excited:
                     out["rho"] = f"{f.rho:.6f}"
                     out["rho std"] = f"{f.rho_std:.3g}"
+        if self.model is not None:
+            out.update(self.model.values())
+            if pl.period_estimate is not None and (rho := self.model.per(pl.period_estimate.period)) is not None:
+                out["model rho"] = f"{rho:.6f}"  # per the estimate's period
+                out["model mismatch"] = str(self.mismatch() is not None).lower()
         out.update(self.live.values())
         out.update(self.cost.summary("cost per sample"))
         return out

@@ -1,0 +1,69 @@
+"""The monitor's model value and its "model mismatch" warning (stability_monitor/model_check.py).
+
+The model value is the config's digital loop on the config's base motion.  Independent numbers: the paper
+config's sampled-data multiplier at the seed pitch case is 0.99879 per period of A(t) (the value the issues and
+docs/monitor.md quote); a controller retuned at start (derivative gain 4 instead of 11.27 A s/m) is no longer the
+config, and the monitor must say so while its own estimate follows the retuned loop's model.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from amb_dynamics.config import load_config
+from stability_monitor.model_check import ModelValue, model_multiplier
+
+PAPER = Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml"
+
+
+@pytest.fixture(scope="module")
+def paper_model():
+    return model_multiplier(load_config(PAPER))
+
+
+def test_model_value_of_the_paper_config(paper_model):
+    rho, bound, period = paper_model
+    assert rho == pytest.approx(0.99879, abs=5e-6)
+    assert bound < 1e-8
+    assert period == pytest.approx(math.pi / 24.5, rel=1e-12)  # pitch: A(t) depends on the rate squared
+
+
+def test_mismatch_rule():
+    mv = ModelValue(load_config(PAPER))
+    mv.rho, mv.bound, mv.period = 0.9988, 0.0, 0.1
+    assert mv.per(0.2) == pytest.approx(0.9988**2)  # an estimate over the base period: two periods of A(t)
+    assert mv.mismatch(0.99881, 6e-6, 0.1) is None
+    assert mv.mismatch(0.9990, 1e-4, 0.1) is None  # 5 standard errors cover the difference
+    msg = mv.mismatch(0.9997, 4e-7, 0.1)  # allowed: a quarter of 1 - 0.9988
+    assert msg is not None and "model mismatch" in msg and "allowed 0.0003" in msg
+    assert mv.mismatch(0.99770, 1e-6, 0.1) is not None  # too much damping is a mismatch too
+
+
+def test_no_model_value_without_a_single_harmonic():
+    cfg = load_config(PAPER, ["base_motion.kind=none"])
+    mv = ModelValue(cfg)
+    mv.start()
+    mv.wait(60)
+    assert mv.rho is None and "not one harmonic" in mv.error
+    assert mv.values() == {"model rho": mv.error}
+
+
+@pytest.mark.ros
+def test_retuned_controller_is_a_model_mismatch(venv_bin, tmp_path, paper_model):
+    cmd = [str(venv_bin / "amb-rig"), "run", "--json", "--config", str(PAPER), "--duration", "3",
+           "--initial-displacement", "1e-3", "--param", "controller:derivative_gain=4.0",
+           "--log-dir", str(tmp_path / "logs")]  # fmt: skip
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    s = json.loads(proc.stdout)
+    st = s["stability"]
+    assert st["model_rho"] == pytest.approx(paper_model[0], abs=1e-6)  # the config's value, not the retuned loop's
+    retuned, _, _ = model_multiplier(load_config(PAPER, ["controller.derivative_gain=4.0"]))
+    assert st["rho"] == pytest.approx(retuned, abs=2e-5)  # the estimate follows the loop that runs
+    assert st["model_mismatch"] is True
+    assert any("disagrees with the config's model" in w for w in s["verdict"]["warnings"])
