@@ -56,6 +56,7 @@ from .pipeline import FORCING_CHOICES, MonitorPipeline, MonitorSettings, synchro
 
 MULTIPLIERS, UNSTABLE = m.MULTIPLIERS, m.UNSTABLE
 INPUTS = ("state", "displacement")
+MODEL_WAIT_S = 5.0  # at the end, for a model value still being computed (real rig ~3 s; amb-rig waits 8 s)
 
 
 def multipliers_qos() -> QoSProfile:
@@ -243,6 +244,8 @@ class MonitorNode(RigNode):
                 self.diag.publish(*self.status(), self.values())
         self.drain()
         self.waiter.close()
+        if self.model is not None:  # the final report always carries the model value (live and replayed alike)
+            self.model.wait(MODEL_WAIT_S)
         level, message = self.status()
         self.diag.publish_final(level, message, self.values())
         pl = self.pipeline
