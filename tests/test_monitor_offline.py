@@ -15,13 +15,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 from builtin_interfaces.msg import Duration
+from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu, JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from amb_bag.metadata import FileRecord, TopicRecord, build_metadata, write_metadata
 from amb_dynamics.config import load_config
 from amb_dynamics.errors import InputError
 from amb_dynamics.estimator.sim import SnapshotSimulator
@@ -112,9 +113,14 @@ def write_bag(path, data, topics=("state", "displacement", "imu"), truncate_to=N
                 js.position = run.y[k].tolist()
                 w.add_message(chans["displacement"], log_time=stamp + 2, data=serialize_message(js), publish_time=stamp)
         w.finish()
-    meta = {"rosbag2_bagfile_information": {"version": 9, "storage_identifier": "mcap",
-                                            "relative_file_paths": [mcap_path.name]}}  # fmt: skip
-    (path / "metadata.yaml").write_text(yaml.safe_dump(meta))
+    # rosbag2 metadata as a recorder leaves it (amb_bag's reader checks it against the file's summary)
+    with open(mcap_path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    st = summary.statistics
+    topics = [TopicRecord(ch.topic, summary.schemas[ch.schema_id].name, [], "", st.channel_message_counts.get(i, 0))
+              for i, ch in summary.channels.items()]  # fmt: skip
+    start, end = st.message_start_time, st.message_end_time
+    write_metadata(path, build_metadata(topics, [FileRecord(mcap_path.name, start, end - start, st.message_count)]))
     if truncate_to is not None:
         raw = mcap_path.read_bytes()
         mcap_path.write_bytes(raw[: int(len(raw) * truncate_to)])

@@ -15,11 +15,12 @@ from pathlib import Path
 import numpy as np
 
 import amb_ros.messages as m
+from amb_bag.errors import BagError
+from amb_bag.reader import Bag
 from amb_dynamics.errors import InputError
 from amb_dynamics.estimator.stream import Estimate
 from amb_dynamics.motion import AXES, BaseMotion, Harmonic
 
-from .bagread import BagReadError, bag_files, bag_topics, read_messages
 from .messages import STATE_BLOCK_TYPE, JointStateInput, StateBlockInput
 from .pipeline import MonitorPipeline, MonitorSettings
 
@@ -68,22 +69,22 @@ class Analysis:
 def analyze_bag(path: Path, settings: MonitorSettings, auto_synchronous: bool = False) -> Analysis:
     """Run the monitor's pipeline over the bag at ``path`` (``auto_synchronous``: the synchronous model is
     dropped, with a note, when the bag has no tachometer topic)."""
-    files = bag_files(path)
-    topics = bag_topics(files)
+    bag = Bag(path)  # amb_bag's reader: one line for a missing, empty, foreign, unfinished or damaged bag
+    topics = {name: t.type for name, t in bag.topics.items()}
     notes = []
     if settings.synchronous and m.SPIN_SPEED not in topics:
         if not auto_synchronous:
-            raise BagReadError(f"{path} has no {m.SPIN_SPEED} topic for the synchronous model: give --synchronous 0")
+            raise BagError(f"{path} has no {m.SPIN_SPEED} topic for the synchronous model: give --synchronous 0")
         settings = replace(settings, synchronous=0)
         notes.append(f"no {m.SPIN_SPEED} in the bag: the synchronous response (unbalance, runout) is not modelled")
     topic = m.DISPLACEMENT if settings.sensor_only else m.STATE
     if topic not in topics:
         hint = "" if settings.sensor_only else " (use --sensor-only for a bag with /amb/displacement only)"
-        raise BagReadError(f"{path} has no {topic} topic{hint}")
+        raise BagError(f"{path} has no {topic} topic{hint}")
     wanted = [topic]
     if settings.period == 0:
         if m.IMU not in topics:
-            raise BagReadError(f"{path} has no {m.IMU} topic to find the base period: give --period")
+            raise BagError(f"{path} has no {m.IMU} topic to find the base period: give --period")
         wanted.append(m.IMU)
     if settings.synchronous:
         wanted.append(m.SPIN_SPEED)
@@ -99,7 +100,7 @@ def analyze_bag(path: Path, settings: MonitorSettings, auto_synchronous: bool = 
     estimates: list[Estimate] = []
     rejected = {t: 0 for t in wanted}
     imu_t, imu_w, spacing, last_t = [], [], [], None
-    for name, _log_ns, raw in read_messages(files, wanted):
+    for name, _type, _log_ns, _pub_ns, raw in bag.messages(wanted):
         try:
             if name == m.IMU:
                 t_ns, v = imu_decoder(raw)
@@ -126,10 +127,10 @@ def analyze_bag(path: Path, settings: MonitorSettings, auto_synchronous: bool = 
             try:
                 estimates.extend(pipeline.on_sample(t, v))
             except InputError as exc:
-                raise BagReadError(f"{path}: {topic}: {exc}") from None
+                raise BagError(f"{path}: {topic}: {exc}") from None
             last_t = t
     if pipeline.samples == 0:
-        raise BagReadError(f"{path} holds no usable {topic} message")
+        raise BagError(f"{path} holds no usable {topic} message")
     return Analysis(
         str(path),
         topic,
