@@ -59,6 +59,13 @@ def test_real_rig_tongue_point_raises_the_flag(venv_bin, tmp_path):
     assert set(zones) == {"amb1_y", "amb1_z", "amb5_y", "amb5_z"}
     if int(s["nodes"]["plant"]["values"]["touchdown contacts"]):
         assert "D" in zones.values(), zones
+    # `amb-bag info` reads the same grade back from the plant's final report in the bag
+    info = subprocess.run([str(venv_bin / "amb-bag"), "info", str(bag), "--json"], capture_output=True, text=True,
+                          timeout=120)  # fmt: skip
+    assert info.returncode == 0, info.stderr
+    recorded = json.loads(info.stdout)["vibration"]
+    assert recorded["final_report"] is True
+    assert recorded["axes"] == s["vibration"]["axes"] and recorded["window_s"] == s["vibration"]["window_s"]
     # the recorded run replayed into the monitor's pipeline gives the live estimate bit for bit
     replay = analyze(venv_bin, bag)
     assert replay["flag_time_s"] == pytest.approx(st["flag_raised_at_s"], abs=1e-9)

@@ -1,14 +1,18 @@
-"""``amb-bag info``: what ``ros2 bag info`` prints (files, size, duration, topics, types, counts) plus loss."""
+"""``amb-bag info``: what ``ros2 bag info`` prints (files, size, duration, topics, types, counts) plus loss and
+the ISO 14839-2 vibration zones of the run's end (from the plant's last /diagnostics report in the bag)."""
 
 from __future__ import annotations
 
 import datetime as dt
 
-from .loss import CUSTOM_KEY, format_table
+from amb_ros.report_keys import read_vibration
+
+from .loss import CUSTOM_KEY, DIAGNOSTICS_TOPIC, format_table
 from .metadata import custom_json
 from .reader import Bag
 
 BYTE_UNITS = ("B", "KiB", "MiB", "GiB", "TiB")
+PLANT_STATUS = "amb_plant"  # the plant node's /diagnostics status name
 
 
 def bag_info(path) -> dict:
@@ -39,7 +43,30 @@ def bag_info(path) -> dict:
         ],
         "loss": custom_json(meta, CUSTOM_KEY),
         "custom_data": meta.get("custom_data"),
+        "vibration": recorded_vibration(bag),
     }
+
+
+def recorded_vibration(bag: Bag) -> dict | None:
+    """The ISO 14839-2 grade of the run's last second, from the plant's last report on /diagnostics in the bag
+    (amb_ros.report_keys); None if the bag has no such report."""
+    if DIAGNOSTICS_TOPIC not in bag.topics:
+        return None
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.serialization import deserialize_message
+
+    last = None
+    for _topic, _type, _log, _pub, data in bag.messages([DIAGNOSTICS_TOPIC]):
+        try:
+            msg = deserialize_message(data, DiagnosticArray)
+        except Exception:  # an undecodable report is recorded anyway; it is not the plant's
+            continue
+        for status in msg.status:
+            if status.name == PLANT_STATUS:
+                values = {kv.key: kv.value for kv in status.values}
+                if (vib := read_vibration(values)) is not None:
+                    last = {**vib, "final_report": values.get("final") == "true"}
+    return last
 
 
 def _size(n: float) -> str:
@@ -76,6 +103,9 @@ def format_info(info: dict) -> str:
     for t in info["topics"]:
         lines.append(f"  Topic: {t['name']:<{width}} | Type: {t['type']:<{tw}} | Count: {t['message_count']:>8} | "
                      f"Serialization Format: {t['serialization_format']}")  # fmt: skip
+    if vib := info.get("vibration"):
+        axes = ", ".join(f"{c} {a['m']:.3g} m zone {a['zone']}" for c, a in vib["axes"].items())
+        lines.append(f"Vibration (ISO 14839-2 vs C_min, last {vib['window_s']:.3g} s, the plant's report): {axes}")
     if info["loss"]:
         lines.append("Loss (received vs published counts reported on /diagnostics):")
         lines.append(format_table(info["loss"]))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from amb_ros.report_keys import read_peaks, read_vibration
+
 from .supervisor import Child, describe_exit
 
 
@@ -37,20 +39,9 @@ def build_summary(run: dict, children: list[Child], collector, errors: list[str]
         out["steps_per_s"] = _num(plant, "steps per second")
         gap = _num(plant, "air gap (m)")
         out["air_gap_m"] = gap
-        out["peak_displacement"] = {
-            key[5:-4]: {"m": _num(plant, key), "air_gap_ratio": _num(plant, f"peak {key[5:-4]} / air gap")}
-            for key in plant
-            if key.startswith("peak ") and key.endswith(" (m)")
-        }
-        if "vibration window (s)" in plant:  # ISO 14839-2 grade of the run's last second (its end, not its start)
-            out["vibration"] = {
-                "window_s": _num(plant, "vibration window (s)"),
-                "axes": {
-                    key[10:-4]: {"m": _num(plant, key), "zone": plant.get(f"vibration zone {key[10:-4]}", "-")}
-                    for key in plant
-                    if key.startswith("vibration ") and key.endswith(" (m)")
-                },
-            }
+        out["peak_displacement"] = read_peaks(plant)
+        if (vib := read_vibration(plant)) is not None:  # ISO 14839-2 grade of the run's last second (its end)
+            out["vibration"] = vib
     ctl = nodes.get("controller", {}).get("values", {})
     if ctl:
         keys = ("samples answered", "samples lost", "saturated samples", "max current (A)", "ticks",

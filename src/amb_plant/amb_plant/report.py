@@ -8,6 +8,7 @@ import json
 import numpy as np
 
 from amb_dynamics.iso14839 import TrailingPeaks, clearance_of
+from amb_ros.report_keys import peak_values, vibration_values
 
 
 class DisplacementReport:
@@ -26,16 +27,10 @@ class DisplacementReport:
         self.trailing.add(y)
 
     def values(self) -> dict[str, str]:
-        out = {}
-        for name, peak in zip(self.channels, self.peak, strict=True):
-            out[f"peak {name} (m)"] = f"{peak:.6g}"
-            out[f"peak {name} / air gap"] = f"{peak / self.air_gap:.6g}"
         iso = self.iso
         zones = self.trailing.zones(self.channels, self.c_min, iso.vibration_zone_limits, iso.vibration_measure)
-        out["vibration window (s)"] = f"{self.trailing.covered * self.Ts:.6g}"
-        for name, z in zones.items():
-            out[f"vibration {name} (m)"] = f"{z.displacement_m:.6g}"
-            out[f"vibration zone {name}"] = z.zone or "-"
+        out = peak_values(self.channels, self.peak, self.air_gap)
+        out.update(vibration_values(self.trailing.covered * self.Ts, zones))
         return out
 
 
