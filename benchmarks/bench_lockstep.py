@@ -15,7 +15,10 @@
    ``trigger:=timer``) and missed deadlines; then the default sample-triggered controller, whose update period
    follows the samples' arrival (sample clock + DDS latency jitter) and its sample-to-command latency.
    Goals: >= 2,000 lockstep steps/s; realtime p99 period error < 100 us.
-4. Lockstep with the real-rig default config (every effect on, the default pitching base), alternating with the
+4. Executor trial: the same ping-pong driven by subscription callbacks of rclpy's EventsExecutor
+   (rclpy.experimental) and of the standard SingleThreadedExecutor, against the nodes' own wait-set path,
+   alternating; printed as round trips/s and ratios (the nodes keep the wait-set path unless these say otherwise).
+5. Lockstep with the real-rig default config (every effect on, the default pitching base), alternating with the
    paper config's normal runs: goal >= 0.9 x its steps/s.
 
 ``main()`` prints a small table and returns a dict (benchmarks/run_all.py calls it).
@@ -52,7 +55,7 @@ def _env() -> dict:
 
 
 # -- ping-pong (both sides run as child processes of this script) ---------------------------------------
-def _pingpong_side(role: str, tag: str, n: int) -> None:
+def _pingpong_side(role: str, tag: str, n: int, path: str = "waitset") -> None:
     import numpy as np
     import rclpy
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -86,6 +89,9 @@ def _pingpong_side(role: str, tag: str, n: int) -> None:
         raise SystemExit(f"pingpong {role}: no message for 10 s")
 
     y = np.zeros(4)
+    if path != "waitset":
+        _pingpong_callbacks(role, n, path, node, pub, sub, codec)
+        return
     if role == "ping":
         time.sleep(0.2)
         t0 = time.perf_counter()
@@ -104,12 +110,67 @@ def _pingpong_side(role: str, tag: str, n: int) -> None:
     rclpy.shutdown()
 
 
-def pingpong(n: int) -> float:
+def _pingpong_callbacks(role: str, n: int, path: str, node, pub, sub_unused, codec) -> None:
+    """The same ping-pong driven by subscription callbacks of an executor: rclpy's EventsExecutor
+    (rclpy.experimental) or the standard SingleThreadedExecutor."""
+    import numpy as np
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.experimental import EventsExecutor
+    from rclpy.task import Future
+    from sensor_msgs.msg import JointState
+
+    from amb_ros.qos import lockstep_qos
+
+    node.destroy_subscription(sub_unused)
+    in_t = sub_unused.topic_name
+    done, y, count, t0 = Future(), np.zeros(4), [0], [0.0]
+
+    def on_message(raw: bytes) -> None:
+        if role == "echo":
+            pub.publish(raw)
+            count[0] += 1
+            if count[0] == n:
+                done.set_result(True)
+            return
+        k = int(codec.decode(raw)[1][0])
+        if k != count[0]:
+            raise SystemExit("pingpong: echo out of order")
+        count[0] += 1
+        if count[0] == n:
+            done.set_result(n / (time.perf_counter() - t0[0]))
+            return
+        y[0] = count[0]
+        pub.publish(codec.encode(count[0], y))
+
+    node.create_subscription(JointState, in_t, on_message, lockstep_qos(), raw=True)
+    executor = EventsExecutor() if path == "events" else SingleThreadedExecutor()
+    executor.add_node(node)
+    time.sleep(0.5)  # the new subscription is matched
+    if role == "ping":
+        t0[0] = time.perf_counter()
+        pub.publish(codec.encode(0, y))
+    executor.spin_until_future_complete(done, timeout_sec=60.0)
+    if not done.done():
+        raise SystemExit(f"pingpong {role} ({path}): not finished in 60 s")
+    if role == "ping":
+        print(json.dumps({"round_trips_per_s": done.result()}), flush=True)
+    else:
+        pub.wait_for_all_acked()
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+def pingpong(n: int, path: str = "waitset") -> float:
+    """Round trips/s of two processes echoing a 4-channel JointState: ``path`` waitset (the nodes' own wait-set
+    loop), events (EventsExecutor callbacks) or single (SingleThreadedExecutor callbacks)."""
     env, tag = _env(), f"{os.getpid()}_{time.monotonic_ns() % 10**6}"
     cmd = [sys.executable, __file__, "--pingpong-side"]
-    echo = subprocess.Popen([*cmd, "echo", tag, str(n)], env=env, stdout=subprocess.DEVNULL)
+    echo = subprocess.Popen([*cmd, "echo", tag, str(n), path], env=env, stdout=subprocess.DEVNULL)
     try:
-        out = subprocess.run([*cmd, "ping", tag, str(n)], env=env, capture_output=True, text=True, timeout=120)
+        out = subprocess.run([*cmd, "ping", tag, str(n), path], env=env, capture_output=True, text=True,
+                             timeout=120)  # fmt: skip
     finally:
         try:
             echo.wait(timeout=15)
@@ -175,6 +236,10 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         for prio in runs:
             runs[prio].append(lockstep(duration, 0, real_rig=True) if prio == "real" else lockstep(duration, prio))
     pp2 = pingpong(round_trips)
+    paths = {"waitset": [], "events": [], "single": []}
+    for _ in range(repeats):  # the executors' callback paths against the nodes' wait-set path, alternating
+        for path in paths:
+            paths[path].append(pingpong(round_trips, path))
     timer, sample = realtime_1khz("timer"), realtime_1khz("sample")
     base = 0.5 * (pp1 + pp2)
     normal = statistics.median(r["steps_per_s"] for r in runs[0])
@@ -196,6 +261,7 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         "lockstep_real_rig_runs": [r["steps_per_s"] for r in runs["real"]],
         "lockstep_real_rig_to_paper_ratio": real / normal,
         "lockstep_real_rig_goal_met": real >= GOAL_REAL_RIG_RATIO * normal,
+        "executor_trial_round_trips_per_s": paths,
         "realtime_1khz_timer": timer,
         "realtime_1khz_sample": sample,
         "realtime_goal_met": timers_p99 < GOAL_P99_US,
@@ -213,6 +279,9 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
          f"steps/s, {real / normal:.2f} x the paper config's normal runs (goal >= {GOAL_REAL_RIG_RATIO:g}: "
          f"{'met' if result['lockstep_real_rig_goal_met'] else 'MISSED'}); runs "
          f"{', '.join(f'{r:,.0f}' for r in result['lockstep_real_rig_runs'])}"),
+        ("executor trial: ping-pong round trips/s", "", "wait-set " + ", ".join(f"{r:,.0f}" for r in paths["waitset"])
+         + "; EventsExecutor " + ", ".join(f"{r:,.0f}" for r in paths["events"]) + "; SingleThreadedExecutor "
+         + ", ".join(f"{r:,.0f}" for r in paths["single"])),
         ("lockstep goal >= 2,000 steps/s", "", f"normal {'met' if normal >= GOAL_STEPS_PER_S else 'MISSED'}, "
          f"SCHED_FIFO {'met' if fifo >= GOAL_STEPS_PER_S else 'MISSED'}"),
         ("realtime 1 kHz timer p50/p99/max (us): controller", f"{timer['p50_us']:.0f}/{timer['p99_us']:.0f}/"
@@ -231,6 +300,9 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
     record_ratio("lockstep real rig / paper config (normal)", result["lockstep_real_rig_runs"], result["lockstep_runs"],
                  goal=f">= {GOAL_REAL_RIG_RATIO:g}")  # fmt: skip
     record("bare rclpy ping-pong, before and after", [pp1, pp2], "round trips/s")
+    record("ping-pong, nodes' wait-set path (executor trial)", paths["waitset"], "round trips/s")
+    record_ratio("ping-pong, EventsExecutor callbacks / wait-set path", paths["events"], paths["waitset"])
+    record_ratio("ping-pong, SingleThreadedExecutor callbacks / wait-set path", paths["single"], paths["waitset"])
     record_ratio("lockstep (normal) / ping-pong", result["lockstep_runs"], [base] * len(result["lockstep_runs"]))
     record("realtime 1 kHz timer period error p99, controller", timer["p99_us"], "us", goal="< 100")
     record("realtime 1 kHz timer period error p99, plant", timer["plant_p99_us"], "us", goal="< 100")
@@ -244,7 +316,7 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
 
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "--pingpong-side":
-        _pingpong_side(sys.argv[2], sys.argv[3], int(sys.argv[4]))
+        _pingpong_side(sys.argv[2], sys.argv[3], int(sys.argv[4]), sys.argv[5])
         sys.exit(0)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=2.0, help="simulated seconds of the lockstep run")
