@@ -122,8 +122,8 @@ def _pingpong_callbacks(role: str, n: int, path: str, node, pub, sub_unused, cod
 
     from amb_ros.qos import lockstep_qos
 
-    node.destroy_subscription(sub_unused)
     in_t = sub_unused.topic_name
+    node.destroy_subscription(sub_unused)
     done, y, count, t0 = Future(), np.zeros(4), [0], [0.0]
 
     def on_message(raw: bytes) -> None:
