@@ -20,6 +20,8 @@ from amb_dynamics.estimator.fit import METHODS
 
 from .pipeline import FORCING_CHOICES, MonitorSettings, synchronous_harmonics
 
+D = MonitorSettings()  # the defaults, typed once (pipeline.py, from the estimator's)
+
 ROWS = 20  # estimates shown in the human-readable table
 
 
@@ -34,20 +36,20 @@ def analyze_parser() -> argparse.ArgumentParser:
     p.add_argument("--synchronous", type=int, default=-1, metavar="H", help="spin harmonics of the synchronous "
                    "response removed with /amb/spin_speed's angle; -1 (default): 1 if --config has unbalance or "
                    "runout and the bag has the tachometer")  # fmt: skip
-    p.add_argument("--phases", type=int, default=32)
-    p.add_argument("--window", type=int, default=16, help="periods in the moving window")
-    p.add_argument("--updates-per-period", type=int, default=8)
+    p.add_argument("--phases", type=int, default=D.phases)
+    p.add_argument("--window", type=int, default=D.window, help="periods in the moving window")
+    p.add_argument("--updates-per-period", type=int, default=D.updates_per_period)
     p.add_argument(
         "--method",
-        default="opt",
+        default=D.method,
         choices=METHODS,
         help="opt: LS refined by variable projection (default); ls: least squares; tls: total least squares",
     )
-    p.add_argument("--noise-std", type=float, default=-1.0, help="measurement noise std (negative: estimate)")
-    p.add_argument("--margin", type=float, default=0.02)
-    p.add_argument("--hysteresis", type=float, default=0.02)
-    p.add_argument("--confidence-z", type=float, default=3.0)
-    p.add_argument("--confirm", type=int, default=2)
+    p.add_argument("--noise-std", type=float, default=D.noise_std, help="measurement noise std (negative: estimate)")
+    p.add_argument("--margin", type=float, default=D.margin)
+    p.add_argument("--hysteresis", type=float, default=D.hysteresis)
+    p.add_argument("--confidence-z", type=float, default=D.z)
+    p.add_argument("--confirm", type=int, default=D.confirm)
     p.add_argument("--top", type=int, default=6, help="multipliers listed per estimate")
     p.add_argument(
         "--config", help="rotor config of the run: base_forcing and the model value (default: the seed rotor)"

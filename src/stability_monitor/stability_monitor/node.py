@@ -56,6 +56,7 @@ from .pipeline import FORCING_CHOICES, MonitorPipeline, MonitorSettings, synchro
 
 MULTIPLIERS, UNSTABLE = m.MULTIPLIERS, m.UNSTABLE
 INPUTS = ("state", "displacement")
+D = MonitorSettings()  # the defaults, typed once (pipeline.py, from the estimator's)
 MODEL_WAIT_S = 5.0  # at the end, for a model value still being computed (real rig ~3 s; amb-rig waits 8 s)
 
 
@@ -72,23 +73,23 @@ def specs() -> list[ParamSpec]:
                   "else from /base/imu", choices=FORCING_CHOICES),
         ParamSpec("synchronous", -1, "spin harmonics of the synchronous response (unbalance, runout) removed with "
                   "the angle from /amb/spin_speed; -1 = auto: 1 when the config has unbalance or runout", "", -1, 8),
-        ParamSpec("phases", 32, "phases sampled per period", "", 1, 4096),
-        ParamSpec("window_periods", 16, "periods in the moving window", "", 3, 10000),
-        ParamSpec("updates_per_period", 8, "refits per period", "", 1, 4096),
-        ParamSpec("method", "opt", "identification: LS refined by variable projection (opt), least squares (ls) or "
+        ParamSpec("phases", D.phases, "phases sampled per period", "", 1, 4096),
+        ParamSpec("window_periods", D.window, "periods in the moving window", "", 3, 10000),
+        ParamSpec("updates_per_period", D.updates_per_period, "refits per period", "", 1, 4096),
+        ParamSpec("method", D.method, "identification: LS refined by variable projection (opt), least squares (ls) or "
                   "total least squares (tls)", choices=METHODS),
-        ParamSpec("max_rank", 12, "largest number of modes identified", "", 1, 1000),
-        ParamSpec("noise_std", -1.0, "measurement noise std of every channel; negative = estimate from the data",
+        ParamSpec("max_rank", D.max_rank, "largest number of modes identified", "", 1, 1000),
+        ParamSpec("noise_std", D.noise_std, "measurement noise std of every channel; negative = estimate from the data",
                   "signal units", -1.0, 1e9),
-        ParamSpec("margin", 0.02, "flag when rho >= 1 + margin (and rho - z std > 1)", "", 0.0, 10.0,
+        ParamSpec("margin", D.margin, "flag when rho >= 1 + margin (and rho - z std > 1)", "", 0.0, 10.0,
                   runtime=True),
-        ParamSpec("hysteresis", 0.02, "clear when rho + z std < 1 + margin - hysteresis", "", 0.0, 10.0,
+        ParamSpec("hysteresis", D.hysteresis, "clear when rho + z std < 1 + margin - hysteresis", "", 0.0, 10.0,
                   runtime=True),
-        ParamSpec("confidence_z", 3.0, "standard errors required on the right side of 1", "", 0.0, 100.0),
-        ParamSpec("confirm", 2, "consecutive refits needed to raise or clear the flag", "", 1, 1000),
+        ParamSpec("confidence_z", D.z, "standard errors required on the right side of 1", "", 0.0, 100.0),
+        ParamSpec("confirm", D.confirm, "consecutive refits needed to raise or clear the flag", "", 1, 1000),
         ParamSpec("publish_count", 8, "multipliers published per refit (largest first)", "", 0, 10000),
-        ParamSpec("static_wait_s", 1.0, "no base rotation for this long: static base", "s", 0.0, 1e6),
-        ParamSpec("static_period_s", 0.1, "period used for a static base", "s", 1e-6, 1e6),
+        ParamSpec("static_wait_s", D.static_wait, "no base rotation for this long: static base", "s", 0.0, 1e6),
+        ParamSpec("static_period_s", D.static_period, "period used for a static base", "s", 1e-6, 1e6),
         ParamSpec("batch_s", 0.02, "sleep between drains: fewer wake-ups, less CPU taken from the loop (the reliable "
                   "1000-deep history holds the samples meanwhile)", "s", 0.0, 1.0),
         ParamSpec("priority", "idle", "scheduling of every thread, DDS's included: idle (SCHED_IDLE: only CPU time "

@@ -10,7 +10,7 @@ stamps), never on wall time, so a replay gives the same output as the live run.
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import MISSING, dataclass, fields, replace
 
 import numpy as np
 
@@ -47,6 +47,11 @@ def auto_forcing(motion_forcing: str, base_forcing: bool, gravity: bool) -> str:
     return kinds.pop() if kinds else "none"
 
 
+# the estimator's and the verdict's own defaults: typed once, in amb_dynamics.estimator
+_EST = {f.name: f.default for f in fields(EstimatorConfig) if f.default is not MISSING}
+_POLICY = VerdictPolicy()
+
+
 @dataclass(frozen=True)
 class MonitorSettings:
     """Monitor options (the node's parameters and the CLI's flags map onto these one to one).
@@ -81,16 +86,16 @@ class MonitorSettings:
     forcing: str = "auto"
     base_forcing: bool = True
     gravity: bool = False
-    phases: int = 32
-    window: int = 16
-    updates_per_period: int = 8
-    method: str = "opt"
-    max_rank: int = 12
+    phases: int = _EST["phases"]
+    window: int = _EST["window"]
+    updates_per_period: int = _EST["updates_per_period"]
+    method: str = _EST["method"]
+    max_rank: int = _EST["max_rank"]
     noise_std: float = -1.0
-    margin: float = 0.02
-    hysteresis: float = 0.02
-    z: float = 3.0
-    confirm: int = 2
+    margin: float = _POLICY.margin
+    hysteresis: float = _POLICY.hysteresis
+    z: float = _POLICY.z
+    confirm: int = _POLICY.confirm
     static_wait: float = 1.0
     static_period: float = 0.1
     max_buffer: int = 400_000
