@@ -1,0 +1,64 @@
+"""A realtime run whose commands stop for a while and then come back is a failed run (issue 20, item 4).
+
+The controller is stopped (SIGSTOP) for STOP_S mid-run and continued: the plant holds its last command for
+`hold_samples` samples, then applies zero current (the rotor would drop), then takes the commands again.  The run
+ends normally, and its verdict must still fail on the time at zero current over the whole run (not only when the
+run happens to end in it), naming it, with exit code 1.  The count is checked against the stop: at 1 kHz, STOP_S
+of silence is about STOP_S x 1000 - hold_samples samples at zero current, less what the commands already in flight
+covered.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+from helpers import rig_json, started_pids
+from procs import spawn
+
+pytestmark = pytest.mark.ros
+
+PAPER = Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml"
+STOP_S = 0.3
+RATE_HZ = 1000.0
+
+
+def test_realtime_commands_lost_mid_run_fail_the_verdict(tmp_path, venv_bin):
+    from sensor_msgs.msg import JointState
+
+    from amb_ros.qos import realtime_qos
+    from helpers import DdsRecorder
+
+    cmd = [str(venv_bin / "amb-rig"), "run", "--json", "--mode", "realtime", "--duration", "4", "--motion", "none",
+           "--config", str(PAPER), "--set", f"controller.rate_hz={RATE_HZ:g}", "--set", "modal_cutoff=800",
+           "--log-dir", str(tmp_path / "logs")]  # fmt: skip
+    rec = DdsRecorder({"/amb/displacement": JointState}, qos=realtime_qos())
+    try:
+        with spawn(cmd, tmp_path / "rig.log") as proc:
+            end = time.monotonic() + 90
+            while len(rec.messages["/amb/displacement"]) < 500 and time.monotonic() < end:
+                time.sleep(0.05)
+            assert len(rec.messages["/amb/displacement"]) >= 500, proc.text()
+            pid = started_pids(proc.text())["controller"]
+            os.kill(pid, signal.SIGSTOP)
+            time.sleep(STOP_S)
+            os.kill(pid, signal.SIGCONT)
+            code = proc.wait(90)
+            text = proc.text()
+    finally:
+        rec.close()
+    s = rig_json(text)
+    plant = s["nodes"]["plant"]["values"]
+    zeroed = int(plant["zero current (samples)"])
+    hold = 10  # the plant's hold_samples default
+    # the silence covered most of STOP_S; the commands in flight and the hold cover the rest
+    assert 0.5 * STOP_S * RATE_HZ - hold <= zeroed <= 2.0 * STOP_S * RATE_HZ, plant
+    v = s["verdict"]
+    assert code == 1 and v["exit_code"] == 1, v
+    assert any("at zero current" in f for f in v["failures"]), v  # 0.29 s in a trial run
+    assert any("lacked a fresh command" in f for f in v["failures"]), v  # and the command loss (6.8 %)
+    assert s["nodes"]["plant"]["final"] and s["nodes"]["controller"]["final"]  # the run itself ended normally
