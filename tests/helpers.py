@@ -1,7 +1,7 @@
 """Helpers shared by several test files (import them from here, not from another test file).
 
 * DDS: :class:`DdsRecorder` records topics in the test process; :func:`run_rig` runs ``amb-rig run --json`` and
-  :func:`rig_json` reads its summary.
+  :func:`rig_json` reads its summary; :func:`rig_in_progress` yields a run once its loop is seen running.
 * Monitor: :func:`model_rho`, the sampled-data model's max|mu| of a pitch run of the seed rotor.
 * Estimator: :func:`synthetic` builds period-stacked snapshots with known multipliers ``MU``; :func:`matched`
   measures how far identified multipliers are from expected ones.
@@ -66,6 +66,26 @@ class DdsRecorder:
 
 def rig_json(text: str) -> dict:
     return json.loads(text[text.index("{") : text.rindex("}") + 1])
+
+
+@contextlib.contextmanager
+def rig_in_progress(cmd: list[str], log, samples: int = 500, realtime: bool = False):
+    """Start ``cmd`` (an amb-rig run) and yield its process once ``samples`` displacement samples were seen over
+    DDS (the loop is running); the process is stopped and reaped on exit."""
+    from sensor_msgs.msg import JointState
+
+    from amb_ros.qos import realtime_qos
+
+    rec = DdsRecorder({"/amb/displacement": JointState}, qos=realtime_qos() if realtime else None)
+    try:
+        with spawn(cmd, log) as proc:
+            end = time.monotonic() + 90
+            while len(rec.messages["/amb/displacement"]) < samples and time.monotonic() < end:
+                time.sleep(0.05)
+            assert len(rec.messages["/amb/displacement"]) >= samples, proc.text()
+            yield proc
+    finally:
+        rec.close()
 
 
 def run_rig(tmp_path, venv_bin, args, timeout=180.0):

@@ -17,8 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from helpers import rig_json, started_pids
-from procs import spawn
+from helpers import rig_in_progress, rig_json, started_pids
 
 pytestmark = pytest.mark.ros
 
@@ -28,29 +27,16 @@ RATE_HZ = 1000.0
 
 
 def test_realtime_commands_lost_mid_run_fail_the_verdict(tmp_path, venv_bin):
-    from sensor_msgs.msg import JointState
-
-    from amb_ros.qos import realtime_qos
-    from helpers import DdsRecorder
-
     cmd = [str(venv_bin / "amb-rig"), "run", "--json", "--mode", "realtime", "--duration", "4", "--motion", "none",
            "--config", str(PAPER), "--set", f"controller.rate_hz={RATE_HZ:g}", "--set", "modal_cutoff=800",
            "--log-dir", str(tmp_path / "logs")]  # fmt: skip
-    rec = DdsRecorder({"/amb/displacement": JointState}, qos=realtime_qos())
-    try:
-        with spawn(cmd, tmp_path / "rig.log") as proc:
-            end = time.monotonic() + 90
-            while len(rec.messages["/amb/displacement"]) < 500 and time.monotonic() < end:
-                time.sleep(0.05)
-            assert len(rec.messages["/amb/displacement"]) >= 500, proc.text()
-            pid = started_pids(proc.text())["controller"]
-            os.kill(pid, signal.SIGSTOP)
-            time.sleep(STOP_S)
-            os.kill(pid, signal.SIGCONT)
-            code = proc.wait(90)
-            text = proc.text()
-    finally:
-        rec.close()
+    with rig_in_progress(cmd, tmp_path / "rig.log", realtime=True) as proc:
+        pid = started_pids(proc.text())["controller"]
+        os.kill(pid, signal.SIGSTOP)
+        time.sleep(STOP_S)
+        os.kill(pid, signal.SIGCONT)
+        code = proc.wait(90)
+        text = proc.text()
     s = rig_json(text)
     plant = s["nodes"]["plant"]["values"]
     zeroed = int(plant["zero current (samples)"])

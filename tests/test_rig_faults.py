@@ -17,7 +17,7 @@ import time
 import pytest
 
 from amb_bringup.supervisor import alive
-from helpers import rig_json, started_pids, wait_gone
+from helpers import rig_in_progress, rig_json, started_pids, wait_gone
 from procs import spawn
 
 pytestmark = pytest.mark.ros
@@ -25,34 +25,19 @@ pytestmark = pytest.mark.ros
 
 def kill_controller_mid_run(tmp_path, venv_bin, args, progress: int = 500):
     """Start amb-rig, kill -9 the controller once ``progress`` samples have been published (seen over DDS)."""
-    from sensor_msgs.msg import JointState
-
-    from helpers import DdsRecorder
-
-    log = tmp_path / "rig.log"
     cmd = [str(venv_bin / "amb-rig"), "run", "--log-dir", str(tmp_path / "logs"), *args]
-    from amb_ros.qos import realtime_qos
-
-    rec = DdsRecorder({"/amb/displacement": JointState}, qos=realtime_qos() if "realtime" in args else None)
-    try:
-        with spawn(cmd, log) as proc:
-            end = time.monotonic() + 90
-            while len(rec.messages["/amb/displacement"]) < progress and time.monotonic() < end:
-                time.sleep(0.05)
-            assert len(rec.messages["/amb/displacement"]) >= progress, proc.text()
-            pids = started_pids(proc.text())
-            assert proc.popen.poll() is None, proc.text()
-            os.kill(pids["controller"], signal.SIGKILL)
-            t_kill = time.monotonic()
-            # amb-rig's process watch notices the death at once (issue 20: within ~1-2 s; loose bound here)
-            noticed = proc.wait_for("amb-rig: controller died (killed by SIGKILL); stopping the run", 5.0)
-            noticed_s = time.monotonic() - t_kill
-            code = proc.wait(60)
-            text = proc.text()
-            assert noticed, text
-            assert noticed_s < 5.0
-    finally:
-        rec.close()
+    with rig_in_progress(cmd, tmp_path / "rig.log", progress, realtime="realtime" in args) as proc:
+        pids = started_pids(proc.text())
+        assert proc.popen.poll() is None, proc.text()
+        os.kill(pids["controller"], signal.SIGKILL)
+        t_kill = time.monotonic()
+        # amb-rig's process watch notices the death at once (issue 20: within ~1-2 s; loose bound here)
+        noticed = proc.wait_for("amb-rig: controller died (killed by SIGKILL); stopping the run", 5.0)
+        noticed_s = time.monotonic() - t_kill
+        code = proc.wait(60)
+        text = proc.text()
+        assert noticed, text
+        assert noticed_s < 5.0
     return code, text, pids
 
 

@@ -14,13 +14,11 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
-from helpers import rig_json
-from procs import spawn
+from helpers import rig_in_progress, rig_json
 
 pytestmark = pytest.mark.ros
 
@@ -52,26 +50,14 @@ rclpy.shutdown()
 
 
 def test_a_burst_intruder_is_noticed(tmp_path, venv_bin):
-    from sensor_msgs.msg import JointState
-
-    from helpers import DdsRecorder
-
     cmd = [str(venv_bin / "amb-rig"), "run", "--json", "--config", str(PAPER), "--duration", "5",
            "--no-monitor", "--log-dir", str(tmp_path / "logs")]  # fmt: skip
-    rec = DdsRecorder({"/amb/displacement": JointState})
-    try:
-        with spawn(cmd, tmp_path / "rig.log") as proc:
-            end = time.monotonic() + 90
-            while len(rec.messages["/amb/displacement"]) < 500 and time.monotonic() < end:
-                time.sleep(0.05)
-            assert len(rec.messages["/amb/displacement"]) >= 500, proc.text()
-            burst = subprocess.run([sys.executable, "-c", INTRUDER], capture_output=True, text=True, timeout=60)
-            assert burst.returncode == 0, burst.stderr
-            words = burst.stdout.split()
-            code = proc.wait(60)
-            text = proc.text()
-    finally:
-        rec.close()
+    with rig_in_progress(cmd, tmp_path / "rig.log") as proc:
+        burst = subprocess.run([sys.executable, "-c", INTRUDER], capture_output=True, text=True, timeout=60)
+        assert burst.returncode == 0, burst.stderr
+        words = burst.stdout.split()
+        code = proc.wait(60)
+        text = proc.text()
     s = rig_json(text)
     plant = s["nodes"]["plant"]["values"]
     rejected = int(plant.get("foreign /amb/current", 0))
