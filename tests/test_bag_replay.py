@@ -183,6 +183,14 @@ def test_replay_into_monitor_equals_live_run(listen, venv_bin, tmp_path):
     # the recorder's CPU (all its threads) is real work and at most its two cores' worth over the run
     assert 0.0 < float(rec["cpu time (s)"]) < 2.0 * summary["run_wall_s"]
     assert re.fullmatch(r"SCHED_IDLE \(\d+ threads\)", rec["scheduling"])  # amb-rig's recorder: --priority idle
+    # the run's effective config is in the bag (the plant's latched /amb_plant/config), overrides included
+    from amb_bag.runconfig import recorded_config
+    from amb_dynamics.config import load_config
+
+    T = N * TS
+    expected = load_config(PAPER, ["controller.current_limit=1e9", "base_motion.kind=pitch",
+                                   "base_motion.amplitude=0.6", f"base_motion.frequency={np.pi / T!r}"])  # fmt: skip
+    assert recorded_config(Bag(bag)) == expected
     n_live = len(live["multipliers"])
     assert n_live >= 30 and n_live == int(live_final["refits"])  # several refits; every one is in the bag
     assert live["flags"] == [False, True]  # the run is unstable: one raise, recorded

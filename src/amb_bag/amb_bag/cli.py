@@ -119,7 +119,11 @@ def build_parser() -> argparse.ArgumentParser:
     plt = sub.add_parser("plot", help="displacements vs air gap, currents, base attitude, rho over time")
     plt.add_argument("bag")
     plt.add_argument("--out", required=True, help="PNG file to write")
-    plt.add_argument("--config", help="rotor config for the air gap (default: seed rotor)")
+    plt.add_argument(
+        "--config",
+        help="rotor config for the air gap (default: the run's own, recorded in the bag on "
+        "/amb_plant/config, else the default config)",
+    )
     plt.set_defaults(func=_cmd_plot)
     sen = sub.add_parser("sensitivity", help="measured sensitivity S_jj of a recorded injection (ISO 14839-3)")
     sen.add_argument("bag")
@@ -127,7 +131,11 @@ def build_parser() -> argparse.ArgumentParser:
     sen.add_argument("--resolution", type=float, default=0.5, help="frequency resolution (Hz) = 1/segment length")
     sen.add_argument("--settle", type=float, default=1.0, help="s after the injection's start left out (transient)")
     sen.add_argument("--band", default=None, help="lo:hi (Hz); default: every bin the injection excites")
-    sen.add_argument("--config", help="rotor config of the run: the model of the digital loop is shown beside")
+    sen.add_argument(
+        "--config",
+        help="rotor config of the run: the model of the digital loop is shown beside "
+        "(default: the run's own, recorded in the bag on /amb_plant/config)",
+    )
     sen.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override of the run")
     sen.add_argument("--json", action="store_true")
     sen.add_argument("--out", help="PNG: measured and model |S| with the zone bands, coherence")

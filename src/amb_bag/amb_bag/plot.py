@@ -1,7 +1,8 @@
 """``amb-bag plot``: one PNG of a run from its bag.
 
 Panels (each only if its topic is in the bag): AMB displacements from /amb/displacement as a fraction of the
-air gap (``--config`` rotor file, default the seed rotor's 2.5e-3 m), control currents from /amb/current
+air gap (``--config`` rotor file, default the run's own config recorded on /amb_plant/config, else the default
+config), control currents from /amb/current
 (effort, A), base attitude from /base/imu (roll about X, pitch about Z, yaw about Y, of the base->inertial
 quaternion, rad, as docs/physics.md#base-motion), and the
 spectral radius rho = max|mu| from /stability/multipliers (layout [k, 2] = re, im) against the stability
@@ -89,8 +90,12 @@ def plot_bag(path, out, config=None) -> Path:
     """Write the run plot of the bag at ``path`` to ``out`` (PNG); returns its path."""
     from amb_dynamics.config import load_config
 
-    air_gap = load_config(config).bearings.air_gap if config else 2.5e-3
-    series = read_series(Bag(path))
+    from .runconfig import recorded_config
+
+    bag = Bag(path)
+    cfg = load_config(config) if config else (recorded_config(bag) or load_config(None))
+    air_gap = cfg.bearings.air_gap
+    series = read_series(bag)
     panels = [t for t in ("/amb/displacement", "/amb/current", "/base/imu", "/stability/multipliers") if t in series]
     if not panels:
         raise BagError(f"{path} has none of /amb/displacement, /amb/current, /base/imu, /stability/multipliers")

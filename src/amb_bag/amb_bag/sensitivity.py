@@ -116,9 +116,12 @@ def run_bag_sensitivity(args) -> int:
     from amb_dynamics.analysis_sensitivity import parse_band
     from amb_dynamics.config import load_config
 
+    from .reader import Bag
+    from .runconfig import recorded_config
+
     try:
         band = parse_band(args.band) if args.band else None
-        cfg = load_config(args.config, args.set) if (args.config or args.set) else None
+        cfg = load_config(args.config, args.set) if (args.config or args.set) else recorded_config(Bag(args.bag))
     except AmbError as exc:
         raise BagError(str(exc)) from None
     t, e, ym = read_injection(args.bag, args.axis)

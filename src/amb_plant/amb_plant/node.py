@@ -46,6 +46,7 @@ from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode, run_token, run_token_spec
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos, latched_qos
+from amb_ros.run_config import config_json
 from amb_ros.runtime import RunFailed, run_node
 from amb_ros.state_block import StateBlockDecoder, StateBlockWriter
 
@@ -135,6 +136,8 @@ class PlantNode(RigNode):
         self.spin_every = p["spin_every"]
         self.contact_pub = self.create_publisher(String, m.TOUCHDOWN, latched_qos())
         self.contacts_sent = 0
+        # the effective config, latched: a recorder (any, ros2 bag's too) keeps it with the run's data
+        self.create_publisher(String, m.RUN_CONFIG, latched_qos()).publish(String(data=config_json(cfg)))
         self.clock_codec = m.clock_codec()
         self.cmd_decoder = m.joint_state_decoder(self.channels, ("effort",), self.token)
         self.cmd_sub = self.create_subscription(JointState, m.CURRENT, self.on_command, qos, raw=True)

@@ -40,6 +40,7 @@ STATE = "/amb_plant/state"
 AUX_STATE = "/amb_plant/aux_state"  # amplifier and sensor-filter states, spin angle (blocks, as STATE)
 SPIN_SPEED = "/amb/spin_speed"  # tachometer: JointState name ["spin"], position = angle, velocity = speed
 TOUCHDOWN = "/amb_plant/touchdown"  # std_msgs/String, one JSON object per backup-bearing contact
+RUN_CONFIG = "/amb_plant/config"  # std_msgs/String, latched: the run's effective rotor config as one JSON object
 MULTIPLIERS = "/stability/multipliers"
 UNSTABLE = "/stability/unstable"
 DIAGNOSTICS = "/diagnostics"

@@ -173,9 +173,8 @@ def recorded_motion(t: np.ndarray, W: np.ndarray, base_period: float) -> BaseMot
     return BaseMotion((Harmonic(kind, amp_w / w, w, float(np.arctan2(-b, a))),), kind)
 
 
-def model_value(analysis: Analysis, config_path: str | None, overrides: list[str]) -> dict:
+def model_value(analysis: Analysis, cfg) -> dict:
     """Sampled-data model multipliers for the recorded base motion and the given rotor config."""
-    from amb_dynamics.config import load_config
     from amb_dynamics.digital_floquet import estimate_point
     from amb_dynamics.sampled import SampledLoop
     from amb_dynamics.structure import build_structure
@@ -184,7 +183,6 @@ def model_value(analysis: Analysis, config_path: str | None, overrides: list[str
     if pe is None or analysis.imu_t.size < 16:
         raise InputError("no base period or base rates in the analysis: no model value")
     motion = recorded_motion(analysis.imu_t, analysis.imu_w, pe.base_period)
-    cfg = load_config(config_path, overrides)
     Ts = max(1, round(1e9 / cfg.controller.rate_hz)) / 1e9  # the nodes' whole-ns sample period
     notes = []
     if analysis.sample_spacing is not None:
@@ -206,9 +204,9 @@ def model_value(analysis: Analysis, config_path: str | None, overrides: list[str
     }
 
 
-def try_model_value(analysis: Analysis, config_path: str | None, overrides: list[str]) -> dict:
+def try_model_value(analysis: Analysis, cfg) -> dict:
     """``model_value`` or {'error': reason} when the recorded motion has no model value (not a failure)."""
     try:
-        return model_value(analysis, config_path, overrides)
+        return model_value(analysis, cfg)
     except InputError as exc:
         return {"error": str(exc)}

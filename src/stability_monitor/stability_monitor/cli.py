@@ -52,7 +52,9 @@ def analyze_parser() -> argparse.ArgumentParser:
     p.add_argument("--confirm", type=int, default=D.confirm)
     p.add_argument("--top", type=int, default=6, help="multipliers listed per estimate")
     p.add_argument(
-        "--config", help="rotor config of the run: base_forcing and the model value (default: the seed rotor)"
+        "--config",
+        help="rotor config of the run: base_forcing and the model value (default: the one the run's "
+        "plant recorded in the bag on /amb_plant/config, else the seed rotor)",
     )
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override")
     p.add_argument("--no-model", action="store_true", help="skip the model value")
@@ -66,9 +68,7 @@ def analyze(argv: list[str]) -> int:
     for name in ("phases", "window", "updates_per_period", "top"):
         if getattr(args, name) < 1:
             raise AmbError(f"--{name.replace('_', '-')} must be >= 1")
-    from amb_dynamics.config import load_config
-
-    cfg = load_config(args.config, args.set)
+    cfg, config_note = run_config(args.bag, args.config, args.set)
     if not -1 <= args.synchronous <= 8:
         raise AmbError("--synchronous must be -1 (auto) or 0..8")
     settings = MonitorSettings(
@@ -89,8 +89,9 @@ def analyze(argv: list[str]) -> int:
         confirm=args.confirm,
     )
     result = analyze_bag(args.bag, settings, auto_synchronous=args.synchronous < 0)
+    result.notes.insert(0, config_note)
     if not args.no_model:
-        result.model = try_model_value(result, args.config, args.set)
+        result.model = try_model_value(result, cfg)
     plot_path = None
     if args.plot:
         from .plot import plot_rho
@@ -102,6 +103,22 @@ def analyze(argv: list[str]) -> int:
     else:
         print_report(doc, plot_path)
     return 0
+
+
+def run_config(bag: Path, config: str | None, overrides: list[str]):
+    """(config, a note saying where it came from): --config's file, else the run's own config recorded in the bag
+    (/amb_plant/config), else the default; --set overrides apply to either."""
+    from amb_bag.reader import Bag
+    from amb_bag.runconfig import recorded_config
+    from amb_dynamics.config import apply_override, config_from_dict, load_config, to_dict
+
+    if config is None and (recorded := recorded_config(Bag(bag))) is not None:
+        data = to_dict(recorded)
+        for item in overrides:
+            apply_override(data, item)
+        return config_from_dict(data, f"{bag} (recorded config)"), "rotor config: the run's own, recorded in the bag"
+    note = f"rotor config: {config}" if config else "rotor config: the default (the bag has no /amb_plant/config)"
+    return load_config(config, overrides), note
 
 
 def print_report(doc: dict, plot_path: Path | None) -> None:
