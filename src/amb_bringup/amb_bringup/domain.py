@@ -5,8 +5,7 @@ Two rigs on one ROS_DOMAIN_ID (a second ``amb-rig run`` in another shell, an orp
 integrate the other rig's commands, the monitor would fit two rotors' data, the recorder would record both.
 Three guards, each naming who is in the way: another ``amb-rig`` holds the domain's run lock
 (``amb_ros.env.hold_run_lock``, immediate and certain); before anything starts, a publisher already on a topic
-this run will publish (``foreign_publishers``); during the run, a second publisher on one of them (``Watch``: DDS
-events as publishers of the loop's topics are discovered, intruders.py, and a graph poll of every topic).
+this run will publish (``foreign_publishers``); during the run, a second publisher on one of them (``Watch``).
 The graph checks depend on discovery, which on localhost took under 40 ms in 14 of 20 probes and 0.7-2.6 s in
 the other 6 (measured): the start probe catches most intruders, the watch catches the rest within a few seconds,
 and the run then fails with that reason instead of producing mixed numbers.
@@ -67,22 +66,14 @@ def describe(found: dict[str, list[str]], domain: str, when: str = "already publ
 
 
 class Watch:
-    """During a run: a topic of this run with more than its one publisher means an intruder (or a second rig).
-
-    The loop's topics are watched by DDS events as publishers appear (intruders.PublisherEvents, created before
-    any node starts); every topic also by a look at the graph every WATCH_PERIOD_S."""
+    """During a run: a topic of this run with more than its one publisher means an intruder (or a second rig)."""
 
     def __init__(self, node, topics, domain: str):
-        from .intruders import PublisherEvents
-
         self.node, self.topics, self.domain = node, list(topics), domain
-        self.events = PublisherEvents(node, self.topics)
         self._next = 0.0
 
     def check(self) -> str | None:
-        """An error message if an intruder is publishing or has published, else None."""
-        if extra := self.events.extra():
-            return describe(extra, self.domain, "joined this run")
+        """An error message if an intruder is publishing, else None (graph looked at every WATCH_PERIOD_S)."""
         now = time.monotonic()
         if now < self._next:
             return None
@@ -91,10 +82,7 @@ class Watch:
         return describe(found, self.domain, "joined this run") if found else None
 
 
-UNNAMED = "a node not yet named"
-
-
 def _full_name(namespace: str, name: str) -> str:
     if name == UNKNOWN_NAME:  # the endpoint is discovered before its node's name (ros_discovery_info) arrives
-        return UNNAMED
+        return "a node not yet named"
     return f"{namespace.rstrip('/')}/{name}"
