@@ -32,9 +32,11 @@ def test_realtime_commands_lost_mid_run_fail_the_verdict(tmp_path, venv_bin):
            "--log-dir", str(tmp_path / "logs")]  # fmt: skip
     with rig_in_progress(cmd, tmp_path / "rig.log", realtime=True) as proc:
         pid = started_pids(proc.text())["controller"]
+        t_stop = time.monotonic()
         os.kill(pid, signal.SIGSTOP)
         time.sleep(STOP_S)
         os.kill(pid, signal.SIGCONT)
+        stopped_s = time.monotonic() - t_stop  # longer than STOP_S on a loaded machine
         code = proc.wait(90)
         text = proc.text()
     s = rig_json(text)
@@ -42,7 +44,8 @@ def test_realtime_commands_lost_mid_run_fail_the_verdict(tmp_path, venv_bin):
     zeroed = int(plant["zero current (samples)"])
     hold = 10  # the plant's hold_samples default
     # the silence covered most of STOP_S; the commands in flight and the hold cover the rest
-    assert 0.5 * STOP_S * RATE_HZ - hold <= zeroed <= 2.0 * STOP_S * RATE_HZ, plant
+    # (a loaded machine also needs a while after SIGCONT before the controller's commands flow again)
+    assert 0.5 * STOP_S * RATE_HZ - hold <= zeroed <= (stopped_s + 0.5) * RATE_HZ, plant
     v = s["verdict"]
     assert code == 1 and v["exit_code"] == 1, v
     assert any("at zero current" in f for f in v["failures"]), v  # 0.29 s in a trial run
