@@ -87,6 +87,8 @@ def specs() -> list[ParamSpec]:
 # lockstep: the plant publishes sample k+1 only after the answer to k, so a sample further ahead than this is
 # not a loss but a foreign stamp (counted and rejected); the first sample must lie in the first few seconds
 SAMPLE_WINDOW = 64
+GAIN_PARAMS = ("proportional_gain", "derivative_gain", "integral_gain", "safe_proportional_gain",
+               "safe_derivative_gain")  # fmt: skip
 FIRST_SAMPLE_WINDOW = 50_000
 
 
@@ -104,8 +106,9 @@ class ControllerNode(RigNode):
         fail = p["fail_at_s"] if p["fail_at_s"] >= 0 else None
         # the core's controller (PID + bias offset, zero current from fail_at_s): the offline rig loop runs the same
         self.rig_ctrl = RigController(cfg, AMBGains.from_config(cfg), self.Ts, p["current_limit"], fail)
-        self.pid = self.rig_ctrl.pid
-        self.pid.c = self.coefficients("nominal")  # the gains as given (parameters may override the config)
+        self.pid = self.rig_ctrl.law  # the PID, with its filters (or the user's state space: no PID gains)
+        if self.pid.c is not None:
+            self.pid.c = self.coefficients("nominal")  # the gains as given (parameters may override the config)
         self.excitation = Excitation(p["excitation_kind"], p["excitation_amplitude"], p["excitation_frequency_hz"],
                                      chans, len(self.channels), p["excitation_seed"])  # fmt: skip
         qos = data_qos(self.mode, p["qos_depth"])
@@ -118,7 +121,10 @@ class ControllerNode(RigNode):
             self.listen_unstable()
         self.injection = InjectionHook(self)  # sensor-signal disturbance (ISO 14839-3), off by default
         self.waiter = Waiter(self, [self.sub])
-        self.live = LiveParams(self, [s for s in specs() if s.runtime], self.retune)
+        self.live = LiveParams(self, [s for s in specs() if s.runtime], self.retune, self.check_gains)
+        for _, name, value in self.live.schedule:
+            if reason := self.check_gains(dict(self.p, **{name: value})):
+                raise InputError(f"parameter 'param_at': {reason}")
         self.answered = self.saturated = self.lost = self.restarts = self.repeated = 0
         self.out_of_window = 0  # lockstep samples stamped far ahead of the stream (rejected)
         self.sensor_losses = self.safe_ticks = self.nonfinite = 0
@@ -146,6 +152,15 @@ class ControllerNode(RigNode):
                             kd=p["safe_derivative_gain"] or 2 * gains.kd)  # fmt: skip
         return DiscretePIDCoefficients.from_gains(gains, self.Ts)
 
+    def check_gains(self, proposed: dict) -> str:
+        """A user state-space controller has no PID gains to retune (reason, or '' when the change is fine)."""
+        if self.pid.c is not None:
+            return ""
+        gains = [k for k in GAIN_PARAMS if proposed[k] != self.p[k]]
+        if gains:
+            return f"'{gains[0]}': the controller is controller.state_space, which has no PID gains"
+        return ""
+
     def listen_unstable(self) -> None:
         # served by Waiter.serve() (every ~0.1 s wall): the switch is a safety action, not part of the lockstep
         if self.unstable_sub is None:
@@ -161,11 +176,12 @@ class ControllerNode(RigNode):
         )
         if p["safe_gains_on_unstable"]:
             self.listen_unstable()
-        self.pid.c = self.coefficients(self.gain_set)  # the PID keeps its integrator and filter state
+        if self.pid.c is not None:
+            self.pid.c = self.coefficients(self.gain_set)  # the PID keeps its integrator and filter state
 
     def on_unstable(self, msg: Bool) -> None:
         """The monitor's verdict: switch once to the safe gains (the PID keeps its integrator and filter state)."""
-        if msg.data and self.gain_set == "nominal" and self.p["safe_gains_on_unstable"]:
+        if msg.data and self.gain_set == "nominal" and self.p["safe_gains_on_unstable"] and self.pid.c is not None:
             self.pid.c = self.coefficients("safe")
             self.gain_set = "safe"
             self.safe_switch_t = self.last_k * self.Ts if self.last_k >= 0 else 0.0

@@ -45,6 +45,8 @@ class DiscretePID:
     n_axes : int
     current_limit : float or None
         Amplifier saturation (A); the integrator is clamped so that it alone cannot exceed it.
+    clip : bool
+        Clip the output at current_limit (False when filters follow: :mod:`amb_dynamics.control_runtime`).
     """
 
     def __init__(
@@ -53,8 +55,10 @@ class DiscretePID:
         n_axes: int = 4,
         current_limit: float | None = None,
         delay: int = 0,
+        clip: bool = True,
     ):
         self.c = coeffs
+        self.clip = clip
         self.n_axes = n_axes
         self.current_limit = current_limit
         self.delay = delay
@@ -78,7 +82,7 @@ class DiscretePID:
         self.eta = c.a * self.eta + c.b * (y - y_prev)
         self.y_prev = y.copy()
         u = -(c.kp * y + c.kI * self.eps + c.kd * self.eta)
-        if self.current_limit is not None:
+        if self.current_limit is not None and self.clip:
             self.saturated = np.abs(u) > self.current_limit
             u = np.clip(u, -self.current_limit, self.current_limit)
         if self.delay:  # one-sample computation delay: apply u_{k-1}

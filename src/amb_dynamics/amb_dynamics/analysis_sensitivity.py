@@ -7,6 +7,7 @@ import time
 import numpy as np
 
 from .config import load_config
+from .control_law import describe
 from .errors import InputError
 from .iso14839 import db, sensitivity_zone
 from .sensitivity import ModalResponse, find_peaks, loop_state_spaces, sensitivity_state_space
@@ -37,6 +38,7 @@ def model_sensitivity(model, cfg, speed_rpm: float, controller: str, band_hz, po
     """S_jj of every (or the selected) AMB axis at one speed: grid (with each refined peak inserted) and peaks."""
     plant, ctrl = loop_state_spaces(model, cfg, speed_rpm, controller)
     resp = ModalResponse.of(sensitivity_state_space(plant, ctrl))
+    stable, margin = loop_stability(resp.poles, plant.dt)
     f = frequency_grid(*band_hz, points)
     w = 2 * np.pi * f
     S = resp(w)
@@ -54,10 +56,26 @@ def model_sensitivity(model, cfg, speed_rpm: float, controller: str, band_hz, po
             "peak_abs": p.abs,
             "peak_db": p.db,
             "peak_hz": p.hz,
-            "zone": sensitivity_zone(p.abs, limits),
+            "zone": sensitivity_zone(p.abs, limits) if stable else "unstable",
         }
         out_abs[name] = np.abs(S_all[:, j, j]).tolist()
-    return {"speed_rpm": float(speed_rpm), "axes": out_axes, "frequency_hz": f_all.tolist(), "abs": out_abs}
+    return {
+        "speed_rpm": float(speed_rpm),
+        "closed_loop": {"stable": stable, **margin},
+        "axes": out_axes,
+        "frequency_hz": f_all.tolist(),
+        "abs": out_abs,
+    }
+
+
+def loop_stability(poles: np.ndarray, dt: float | None) -> tuple[bool, dict]:
+    """Is the closed loop stable (every pole in the left half-plane, or inside the unit circle)?  S is a
+    stability margin only then: ISO 14839-3 zones assume a stable loop."""
+    if dt is None:
+        worst = float(poles.real.max(initial=-np.inf))
+        return worst < 0.0, {"max_real_per_s": worst}
+    worst = float(np.abs(poles).max(initial=0.0))
+    return worst < 1.0, {"spectral_radius": worst}
 
 
 def run_sensitivity(args):
@@ -90,12 +108,20 @@ def run_sensitivity(args):
     if args.controller == "sampled":
         data.update(controller_rate_hz=cfg.controller.rate_hz, delay_samples=cfg.controller.delay_samples)
     lines = [f"{cfg.source}: sensitivity S_jj, {args.controller} controller, {band[0]:g}-{band[1]:g} Hz"]
+    lines.append(f"controller: {describe(cfg)}")
+    data["controller_law"] = describe(cfg)
     lines.append("speed (rpm)  axis       peak |S|   peak (dB)   at (Hz)     zone")
     for s in speeds:
         for name, a in s["axes"].items():
             lines.append(
                 f"{s['speed_rpm']:11g}  {name:9s} {a['peak_abs']:9.4g}   {a['peak_db']:8.2f}   "
                 f"{a['peak_hz']:10.5g}   {a['zone']}"
+            )
+    for s in speeds:
+        if not s["closed_loop"]["stable"]:
+            lines.append(
+                f"closed loop UNSTABLE at {s['speed_rpm']:g} rpm ({_margin_text(s['closed_loop'])}): its S is no "
+                "stability margin, and no zone is given"
             )
     lines.append("zone limits |S| (A/B, B/C, C/D): " + ", ".join(f"{x:g} ({db(x):.1f} dB)" for x in limits))
     if args.out:
@@ -106,3 +132,9 @@ def run_sensitivity(args):
         lines.append(f"PNG: {png}")
     data["seconds"] = time.perf_counter() - t0
     return data, "\n".join(lines)
+
+
+def _margin_text(loop: dict) -> str:
+    if "spectral_radius" in loop:
+        return f"spectral radius {loop['spectral_radius']:.6g} >= 1"
+    return f"pole with real part {loop['max_real_per_s']:.4g} 1/s"

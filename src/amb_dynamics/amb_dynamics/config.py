@@ -19,6 +19,7 @@ from typing import Any
 
 import yaml
 
+from .config_control import FilterConfig, StateSpaceConfig, check_control
 from .config_fields import spec as _f
 from .config_rig import (
     ActuatorConfig,
@@ -92,6 +93,8 @@ class ControllerConfig:
     bias_current_offset: tuple[float, ...] = _f(
         "A", default=(), doc="static control current per AMB axis (amb1_y, amb1_z, amb5_y, amb5_z); empty = none"
     )
+    filters: tuple[FilterConfig, ...] = _f(default=(), doc="notch / lead-lag filters in series after the PID")
+    state_space: StateSpaceConfig | None = _f(default=None, doc="the user's controller instead of the PID")  # noqa: RUF009
 
 
 @dataclass(frozen=True)
@@ -361,3 +364,4 @@ def _check_topology(cfg: RotorConfig, source: str) -> None:
     if bm.kind in ("roll", "pitch", "yaw") and bm.amplitude > 0 and bm.frequency <= 0:
         raise ConfigError(f"{source}: 'base_motion.frequency' must be > 0 rad/s for a moving base")
     check_rig(cfg, source)
+    check_control(cfg, source)

@@ -12,20 +12,22 @@ import numpy as np
 
 from .amb import DiscretePID, DiscretePIDCoefficients
 from .config import RotorConfig
+from .control_law import is_plain_pid
+from .control_runtime import ControlLaw
 from .motion import BaseMotion
 from .rig_plant import RigPlant
 from .structure import StructuralModel
 
 
 class RigController:
-    """Discrete PID + static bias-current offset, clamped at current_limit; zero current from fail_at_s on.
+    """Discrete PID (with its filters, or the user's state space: :class:`amb_dynamics.control_runtime.ControlLaw`)
+    + static bias-current offset, clamped at current_limit; zero current from fail_at_s on.
 
     The one implementation of the controller node's command (lockstep and offline alike).
     """
 
     def __init__(self, cfg: RotorConfig, gains, Ts: float, current_limit: float | None, fail_at_s: float | None):
-        coeffs = DiscretePIDCoefficients.from_gains(gains, Ts)
-        self.pid = DiscretePID(coeffs, 4, current_limit, delay=cfg.controller.delay_samples)
+        self.law = control_law_runtime(cfg, gains, Ts, current_limit)
         off = cfg.controller.bias_current_offset
         self.offset = np.array(off, dtype=float) if off else None
         self.limit = current_limit
@@ -39,7 +41,7 @@ class RigController:
         """Current (A) answering sample k."""
         if self.failed(k):
             return self.zero
-        u = self.pid.step(y)
+        u = self.law.step(y)
         if self.offset is not None:
             u = u + self.offset
             if self.limit is not None:
@@ -47,12 +49,22 @@ class RigController:
         return u
 
 
+def control_law_runtime(cfg: RotorConfig, gains, Ts: float, current_limit: float | None) -> DiscretePID | ControlLaw:
+    """The digital controller of cfg at period Ts: the plain DiscretePID, or the ControlLaw of filters/state space."""
+    coeffs = DiscretePIDCoefficients.from_gains(gains, Ts)
+    delay = cfg.controller.delay_samples
+    if is_plain_pid(cfg):
+        return DiscretePID(coeffs, 4, current_limit, delay=delay)
+    return ControlLaw(cfg, coeffs, current_limit, delay)
+
+
 def levitated_state(plant: RigPlant, cfg: RotorConfig) -> np.ndarray:
     """Plant state at rest on the controller under gravity (base level, no spin effects): zero without gravity.
 
-    Steady state of the digital PD (derivative zero, i = offset - kp y_m) with the bias-current offset:
-    (K_B + (ki kp + ks) Ba Ba^T) q = f_g + ki Ba offset; the amplifier state = i, the filter state = y.  The run
-    then starts levitated rather than dropping the overhung disk onto its shaft's elastic sag at t = 0.
+    Steady state of the digital controller's start gain K0 (for the PID i = offset - kp y_m: derivative zero,
+    integrator empty) with the bias-current offset: (K_B + ks Ba Ba^T - ki Ba K0 Ba^T) q = f_g + ki Ba offset;
+    the amplifier state = i, the filter state = y.  The run then starts levitated rather than dropping the
+    overhung disk onto its shaft's elastic sag at t = 0.
     """
     model, lin = plant.model, plant.lin
     x = np.zeros(plant.N)
@@ -60,14 +72,16 @@ def levitated_state(plant: RigPlant, cfg: RotorConfig) -> np.ndarray:
         return x
     g = model.gains
     off = np.array(cfg.controller.bias_current_offset or (0.0,) * 4, dtype=float)
-    K = model.mats["K_B"] + (g.ki * g.kp + g.ks) * model.Ba @ model.Ba.T
+    law = control_law_runtime(cfg, g, plant.Ts, None)
+    K0 = law.start_gain if isinstance(law, ControlLaw) else -g.kp * np.eye(4)
+    K = model.mats["K_B"] + g.ks * model.Ba @ model.Ba.T - g.ki * model.Ba @ K0 @ model.Ba.T
     f = plant.S[:, -2:] @ np.array([-plant.g, 0.0]) + g.ki * model.Ba @ off
     q = np.linalg.solve(K, f)
     n = model.n
     x[:n] = q
     y = model.Ba.T @ q
     if lin.layout.amp is not None:
-        x[lin.layout.amp] = off - g.kp * y
+        x[lin.layout.amp] = off + K0 @ y
     if lin.layout.sens is not None:
         x[lin.layout.measured] = y
     return x

@@ -5,8 +5,9 @@ at its sample (Omega_k, dOmega_k), exactly as the plant node receives it from /b
 
     xp_{k+1} = E_k xp_k + Gamma_k i_k + g_k,    [[E, Gamma, g], [0, I, 0], [0, 0, 1]] = expm(Ts * Aaug_k)
 
-``PlantStepper`` is the one-step propagator of the plant node; ``SampledLoop`` adds the discrete PID of
-:mod:`amb_dynamics.amb` and gives the step maps F_k (for the monodromy) and the offline simulation.
+``PlantStepper`` is the one-step propagator of the plant node; ``SampledLoop`` adds the digital controller
+(the discrete PID of :mod:`amb_dynamics.amb`, with its filters or the user's state space:
+:mod:`amb_dynamics.control_law`) and gives the step maps F_k (for the monodromy) and the offline simulation.
 """
 
 from __future__ import annotations
@@ -16,8 +17,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from .amb import DiscretePID, DiscretePIDCoefficients, pid_update_matrices
+from .amb import DiscretePID, DiscretePIDCoefficients
 from .config import RotorConfig
+from .control_law import discrete_controller, is_plain_pid
+from .control_runtime import ControlLaw
 from .motion import BaseMotion
 from .plant_dynamics import PlantDynamics, StateLayout, open_loop_plant
 from .structure import StructuralModel
@@ -132,7 +135,7 @@ class SampledRun:
 
 
 class SampledLoop:
-    """Plant stepper + discrete PID at rate 1/Ts (ZOH, optional one-sample delay)."""
+    """Plant stepper + digital controller at rate 1/Ts (ZOH, optional one-sample delay)."""
 
     def __init__(
         self,
@@ -148,9 +151,14 @@ class SampledLoop:
         self.delay = cfg.controller.delay_samples if delay_samples is None else delay_samples
         self.plant = PlantStepper(model, cfg, self.Ts, forcing=forcing, dynamics=dynamics)
         self.pid_coeffs = DiscretePIDCoefficients.from_gains(model.gains, self.Ts)
+        self.plain_pid = is_plain_pid(cfg)
+        # its linear form: X = [xp; controller state], x_k+1 = Ak x_k + Bk y_k, u_k = Ck x_k + Dk y_k
+        self.controller = discrete_controller(cfg, model.gains, self.Ts, self.delay)
 
-    def new_controller(self, current_limit: float | None = None) -> DiscretePID:
-        return DiscretePID(self.pid_coeffs, 4, current_limit, delay=self.delay)
+    def new_controller(self, current_limit: float | None = None) -> DiscretePID | ControlLaw:
+        if self.plain_pid:
+            return DiscretePID(self.pid_coeffs, 4, current_limit, delay=self.delay)
+        return ControlLaw(self.cfg, self.pid_coeffs, current_limit, self.delay)
 
     def simulate(self, motion: BaseMotion, steps: int, x0: np.ndarray) -> SampledRun:
         """The closed loop exactly as the node suite runs it (lockstep), without saturation."""
@@ -171,25 +179,18 @@ class SampledLoop:
         return SampledRun(t, x, y, cur)
 
     def step_map(self, Omega: np.ndarray, dOmega: np.ndarray) -> np.ndarray:
-        """F_k on X_k = [xp(t_k); controller memory] (docs/physics.md#sampled), for rates held over the step."""
-        g = self.model.gains
-        use_int, use_eta = g.kI != 0.0, g.kd != 0.0
-        Py, Pm, Uy, Um, parts = pid_update_matrices(self.pid_coeffs, 4, use_int, use_eta, self.delay > 0)
+        """F_k on X_k = [xp(t_k); controller state] (docs/physics.md#sampled), for rates held over the step."""
+        K = self.controller
         E, Gam, _ = self.plant.matrices(Omega, dOmega)
-        n, n2, nm = self.model.n, self.plant.N, Pm.shape[0]
+        n, n2, nm = self.model.n, self.plant.N, K.n_states
         if self.plant.Cm is not None:
             Cy = self.plant.Cm
         else:
             Cy = np.zeros((4, n2))
             Cy[:, :n] = self.model.Ba.T
         F = np.zeros((n2 + nm, n2 + nm))
-        if self.delay:
-            j = parts.index("u")
-            F[:n2, :n2] = E
-            F[:n2, n2 + 4 * j : n2 + 4 * j + 4] = Gam
-        else:
-            F[:n2, :n2] = E + Gam @ Uy @ Cy
-            F[:n2, n2:] = Gam @ Um
-        F[n2:, :n2] = Py @ Cy
-        F[n2:, n2:] = Pm
+        F[:n2, :n2] = E + Gam @ K.D @ Cy
+        F[:n2, n2:] = Gam @ K.C
+        F[n2:, :n2] = K.B @ Cy
+        F[n2:, n2:] = K.A
         return F

@@ -24,63 +24,20 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-import scipy.linalg as sla
 from scipy.optimize import minimize_scalar
 
-from .amb import DiscretePIDCoefficients, pid_update_matrices
 from .config import RotorConfig
+from .control_law import continuous_controller, discrete_controller, discrete_pid_state_space, pid_state_space  # noqa: F401  (re-exported)
 from .errors import InputError
 from .sampled import PlantStepper
-from .structure import AMBGains, StructuralModel
+from .state_space import StateSpace
+from .state_space import close_loop as sensitivity_state_space
+from .structure import StructuralModel
 from .system import coefficients_from_rates
 
-CHUNK = 256  # frequencies per batched solve (memory: CHUNK * n^2 complex)
 LOCAL_POINTS = 41  # dense local grid around each peak candidate
 LOCAL_HALF_WIDTHS = 8.0  # local grid spans +- this many half-power half-widths of a lightly damped pole
 REFINE = 3  # candidates (largest first) refined by Brent per axis
-
-
-@dataclass(frozen=True)
-class StateSpace:
-    """x' = A x + B u (``dt`` None) or x_k+1 = A x_k + B u_k (sample period ``dt`` s); y = C x + D u + D1 u'.
-
-    ``D1`` (continuous only) is an ideal derivative feed-through (an improper term, e.g. an ideal PD's kd).
-    """
-
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    D: np.ndarray
-    dt: float | None = None
-    D1: np.ndarray | None = None
-
-    @property
-    def n_states(self) -> int:
-        return self.A.shape[0]
-
-    def variable(self, w: np.ndarray) -> np.ndarray:
-        """s = jw (continuous) or z = exp(jw dt) (discrete) for angular frequencies w (rad/s)."""
-        w = np.asarray(w, dtype=float)
-        return 1j * w if self.dt is None else np.exp(1j * w * self.dt)
-
-    def freqresp(self, w: np.ndarray) -> np.ndarray:
-        """Frequency response at angular frequencies w (rad/s), shape (len(w), n_outputs, n_inputs)."""
-        w = np.atleast_1d(np.asarray(w, dtype=float))
-        s = self.variable(w)
-        ny, nu = self.D.shape
-        H = np.empty((w.size, ny, nu), dtype=complex)
-        H[:] = self.D
-        n = self.n_states
-        if n:
-            eye = np.eye(n)
-            for a in range(0, w.size, CHUNK):
-                sl = slice(a, a + CHUNK)
-                lhs = s[sl, None, None] * eye - self.A
-                X = np.linalg.solve(lhs, np.broadcast_to(self.B, (lhs.shape[0], n, nu)))
-                H[sl] += self.C @ X
-        if self.D1 is not None:
-            H += s[:, None, None] * self.D1
-        return H
 
 
 def _speed_cfg(cfg: RotorConfig, speed_rpm: float | None) -> RotorConfig:
@@ -123,84 +80,6 @@ def sampled_plant_state_space(
     E, Gam, _ = stepper.matrices(np.zeros(3), np.zeros(3))
     C = _measured_output(stepper, model, E.shape[0])
     return StateSpace(E.copy(), Gam.copy(), C, np.zeros((C.shape[0], Gam.shape[1])), dt=Ts)
-
-
-def pid_state_space(gains: AMBGains, n_axes: int = 4) -> StateSpace:
-    """Continuous PID per axis, u = K y_m with K(s) = -(kp + kI/s + kd s) (ideal) or -(kp + kI/s + kd wf s/(s+wf)).
-
-    States: the integrals (if kI != 0), then the derivative filter states (if wf is set); the ideal derivative is
-    the improper term D1 = -kd I.
-    """
-    Id = np.eye(n_axes)
-    blocks_A, blocks_B, blocks_C = [], [], []
-    D = -gains.kp * Id
-    D1 = None
-    if gains.kI != 0.0:
-        blocks_A.append(np.zeros((n_axes, n_axes)))
-        blocks_B.append(Id)
-        blocks_C.append(-gains.kI * Id)
-    if gains.kd != 0.0 and gains.omega_f is not None:
-        wf = gains.omega_f  # kd wf s/(s+wf) = kd wf (1 - wf/(s+wf)); x' = -wf x + y
-        blocks_A.append(-wf * Id)
-        blocks_B.append(Id)
-        blocks_C.append(gains.kd * wf * wf * Id)
-        D = D - gains.kd * wf * Id
-    elif gains.kd != 0.0:
-        D1 = -gains.kd * Id
-    A = sla.block_diag(*blocks_A) if blocks_A else np.zeros((0, 0))
-    B = np.vstack(blocks_B) if blocks_B else np.zeros((0, n_axes))
-    C = np.hstack(blocks_C) if blocks_C else np.zeros((n_axes, 0))
-    return StateSpace(A, B, C, D, None, D1)
-
-
-def discrete_pid_state_space(gains: AMBGains, Ts: float, delay_samples: int = 0, n_axes: int = 4) -> StateSpace:
-    """The digital PID the controller node runs (:class:`amb_dynamics.amb.DiscretePID`) as a state space in k.
-
-    State x_k = the controller memory m_k-1; u_k = U_y y_k + U_m x_k, or u_k-1 with a one-sample computation delay.
-    """
-    coeffs = DiscretePIDCoefficients.from_gains(gains, Ts)
-    use_int, use_eta, use_delay = gains.kI != 0.0, gains.kd != 0.0, delay_samples > 0
-    Py, Pm, Uy, Um, parts = pid_update_matrices(coeffs, n_axes, use_int, use_eta, use_delay)
-    if use_delay:
-        j = parts.index("u")
-        C = np.zeros((n_axes, Pm.shape[0]))
-        C[:, n_axes * j : n_axes * (j + 1)] = np.eye(n_axes)
-        return StateSpace(Pm, Py, C, np.zeros((n_axes, n_axes)), dt=Ts)
-    return StateSpace(Pm, Py, Um, Uy, dt=Ts)
-
-
-def _check_pair(plant: StateSpace, controller: StateSpace) -> None:
-    if (plant.dt is None) != (controller.dt is None) or (plant.dt is not None and plant.dt != controller.dt):
-        raise InputError("plant and controller must both be continuous or share one sample period")
-    if np.abs(plant.D).max(initial=0.0) != 0.0 or plant.D1 is not None:
-        raise InputError("the plant must be strictly proper (no current-to-displacement feed-through)")
-
-
-def sensitivity_state_space(plant: StateSpace, controller: StateSpace) -> StateSpace:
-    """The closed loop from the injected E (added to the sensor signals) to the disturbed signals y_m = y + E.
-
-    X = [x_plant; x_controller]; an ideal derivative D1 is absorbed by the change of state X - B1 E (B1 = [Bp D1; 0]),
-    valid because a mechanical plant has Cp Bp = 0 (displacement does not jump with current).
-    """
-    _check_pair(plant, controller)
-    Ap, Bp, Cp = plant.A, plant.B, plant.C
-    Ac, Bc, Cc, Dc = controller.A, controller.B, controller.C, controller.D
-    feed = Dc @ Cp
-    n, nc, m = Ap.shape[0], controller.n_states, Cp.shape[0]
-    B1 = np.zeros((n + nc, m))
-    if controller.D1 is not None:
-        if np.abs(Cp @ Bp).max() > 1e-12 * max(1.0, np.abs(Bp).max()):
-            raise InputError("an ideal derivative needs a plant whose displacement does not jump with current")
-        feed = feed + controller.D1 @ Cp @ Ap
-        B1[:n] = Bp @ controller.D1
-    A = np.zeros((n + nc, n + nc))
-    A[:n, :n] = Ap + Bp @ feed
-    A[:n, n:] = Bp @ Cc
-    A[n:, :n] = Bc @ Cp
-    A[n:, n:] = Ac
-    B0 = np.vstack([Bp @ Dc, Bc])
-    C = np.hstack([Cp, np.zeros((m, nc))])
-    return StateSpace(A, B0 + A @ B1, C, np.eye(m), plant.dt)
 
 
 @dataclass(frozen=True)
@@ -330,14 +209,15 @@ def _grid_brackets(w: np.ndarray, v: np.ndarray, top: int = 4) -> list[tuple[flo
 def loop_state_spaces(
     model: StructuralModel, cfg: RotorConfig, speed_rpm: float, controller: str = "continuous"
 ) -> tuple[StateSpace, StateSpace]:
-    """(plant, controller) of today's models: ``continuous`` (PID of cfg) or ``sampled`` (the rig's digital loop
-    at controller.rate_hz with controller.delay_samples)."""
+    """(plant, controller) of the config: ``continuous`` (its controller in continuous time) or ``sampled`` (the
+    rig's digital loop at controller.rate_hz with controller.delay_samples); :mod:`amb_dynamics.control_law`."""
+    n_axes = model.Ba.shape[1]
     if controller == "continuous":
-        return plant_state_space(model, cfg, speed_rpm), pid_state_space(model.gains, model.Ba.shape[1])
+        return plant_state_space(model, cfg, speed_rpm), continuous_controller(cfg, model.gains, n_axes)
     if controller == "sampled":
         Ts = 1.0 / cfg.controller.rate_hz
         return (
             sampled_plant_state_space(model, cfg, Ts, speed_rpm),
-            discrete_pid_state_space(model.gains, Ts, cfg.controller.delay_samples, model.Ba.shape[1]),
+            discrete_controller(cfg, model.gains, Ts, cfg.controller.delay_samples, n_axes),
         )
     raise InputError(f"controller must be continuous or sampled (got {controller!r})")

@@ -14,8 +14,10 @@ import numpy as np
 import scipy.linalg as sla
 
 from .config import RotorConfig
+from .control_law import continuous_controller, is_plain_pid
 from .motion import BaseMotion
-from .plant_dynamics import PlantDynamics, closed_loop_matrix
+from .plant_dynamics import PlantDynamics, closed_loop_matrix, open_loop_plant
+from .state_space import StateSpace, close_loop
 from .structure import StructuralModel
 
 # c_j(t) in A(t) = A0 + sum c_j A_j  (Phi = phi_dot + Omega_x is the total spin)
@@ -106,24 +108,53 @@ class ClosedLoop:
 
 
 def closed_loop(model: StructuralModel, cfg: RotorConfig, dynamics: PlantDynamics | None = None) -> ClosedLoop:
-    """Assemble the continuous closed loop of docs/physics.md#controller (collocated PID, ideal or filtered).
+    """Assemble the continuous closed loop of docs/physics.md#controller (collocated PID, ideal or filtered;
+    with notch / lead-lag filters or the user's state space: :mod:`amb_dynamics.control_law`).
 
     ``dynamics``: amplifier, sensor filter and shaft damping (default: from ``cfg``, :mod:`.plant_dynamics`).
     """
-    n, g, Ba = model.n, model.gains, model.Ba
+    g, Ba = model.gains, model.Ba
     M = model.M
     Minv = sla.inv(M)  # n <= a few hundred; M is factored once here, never in a loop
+    dyn = PlantDynamics.from_config(cfg) if dynamics is None else dynamics
+    if not is_plain_pid(cfg):
+        A0, labels = _general_closed_loop(model, cfg, dyn, Minv)
+        return _with_terms(model, cfg, A0, Minv, labels)
     use_int = g.kI != 0.0
     use_filt = g.omega_f is not None
     na = Ba.shape[1]  # AMB axes
     ne, nf = (na if use_int else 0), (na if use_filt else 0)
-    N = 2 * n + ne + nf
-    dyn = PlantDynamics.from_config(cfg) if dynamics is None else dynamics
     if dyn.augmented:  # amplifier, sensor filter or shaft damping (plant_dynamics); else the paper's loop below
         A0, lay, _, _ = closed_loop_matrix(model, dyn, Minv)
-        N = A0.shape[0]
     else:
         A0 = _paper_closed_loop(model, Minv, ne, nf)
+    labels = (
+        *model.dof_names,
+        *(f"d_{d}" for d in model.dof_names),
+        *(f"int_{c}" for c in model.channels[:ne]),
+        *(f"filt_{c}" for c in model.channels[:nf]),
+    )
+    if dyn.augmented:
+        labels += lay.labels((), model.channels)
+    return _with_terms(model, cfg, A0, Minv, labels)
+
+
+def _general_closed_loop(
+    model: StructuralModel, cfg: RotorConfig, dyn: PlantDynamics, Minv: np.ndarray
+) -> tuple[np.ndarray, tuple[str, ...]]:
+    """A0 of any linear controller u = K(s) y_m around the plant: states [plant; controller]."""
+    Ap, Bp, Cm, _, lay = open_loop_plant(model, dyn, Minv)
+    K = continuous_controller(cfg, model.gains, model.Ba.shape[1])
+    A0 = close_loop(StateSpace(Ap, Bp, Cm, np.zeros((Cm.shape[0], Bp.shape[1]))), K).A
+    labels = lay.labels(model.dof_names, model.channels) + tuple(f"ctrl_{i}" for i in range(K.n_states))
+    return A0, labels
+
+
+def _with_terms(
+    model: StructuralModel, cfg: RotorConfig, A0: np.ndarray, Minv: np.ndarray, labels: tuple[str, ...]
+) -> ClosedLoop:
+    """The ClosedLoop of A0 with the base-motion and spin terms on the rows of q'' (x[n:2n])."""
+    n, N = model.n, A0.shape[0]
     terms = {}
     for name, (Kj, Dj) in parametric_matrices(model, cfg).items():
         if not Kj.any() and not Dj.any():
@@ -134,14 +165,6 @@ def closed_loop(model: StructuralModel, cfg: RotorConfig, dynamics: PlantDynamic
         terms[name] = Aj
     Bf = np.zeros((N, 4))
     Bf[n : 2 * n] = Minv @ model.forcing
-    labels = (
-        *model.dof_names,
-        *(f"d_{d}" for d in model.dof_names),
-        *(f"int_{c}" for c in model.channels[:ne]),
-        *(f"filt_{c}" for c in model.channels[:nf]),
-    )
-    if dyn.augmented:
-        labels += lay.labels((), model.channels)
     return ClosedLoop(A0, terms, Bf, n, labels)
 
 

@@ -43,6 +43,8 @@ class SnapshotSimulator:
         K = round(ratio)
         if K < 1 or abs(ratio - K) > PERIOD_MATCH_TOL * ratio:
             raise InputError(f"base period / Ts = {ratio:.9g} is not an integer: choose omega with T = N*Ts")
+        if not loop.plain_pid:
+            raise InputError("the snapshot simulator runs the plain PID (no controller.filters or state_space)")
         self.loop, self.motion, self.cycle = loop, motion, K
         g = loop.model.gains
         self.parts = pid_update_matrices(loop.pid_coeffs, 4, g.kI != 0.0, g.kd != 0.0, loop.delay > 0)[4]
