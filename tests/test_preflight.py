@@ -2,6 +2,7 @@
 continuous loop and unstable as the 5 kHz digital loop the rig runs; `modes`/`campbell` flag it, `amb-rig run`
 refuses it (or warns with --force).  The spectral radius is checked against an independent time simulation."""
 
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -86,3 +87,20 @@ def test_rig_force_warns_and_goes_on(capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert "WARNING (--force)" in err and "--rt-priority" in err
+
+
+def test_modes_judge_the_digital_loop_the_rig_runs(capsys):
+    """The paper's config runs its digital loop on the modal model (modal_cutoff 5000 rad/s): `modes` must give
+    that loop's verdict (the one `amb-rig run` checks), not the full FE model's, whose 1.8 kHz mode is unstable."""
+    from amb_dynamics.config import paper_config_path
+    from amb_dynamics.preflight import rig_preflight
+
+    cfg = load_config(paper_config_path())
+    assert cli.main(["modes", "--config", str(paper_config_path()), "--speed-rpm", "0", "1000", "--json"]) == 0
+    speeds = json.loads(capsys.readouterr().out)["speeds"]
+    ok, _ = rig_preflight(cfg)
+    assert ok and [s["digital_loop"]["stable"] for s in speeds] == [True, True]
+    want = digital_at_rest(build_structure(cfg), cfg)["spectral_radius_per_sample"]  # at the config's 1000 rpm
+    assert speeds[1]["digital_loop"]["spectral_radius_per_sample"] == pytest.approx(want, rel=1e-12)
+    full = digital_at_rest(build_structure(dataclasses.replace(cfg, modal_cutoff=None)), cfg)
+    assert not full["stable"]  # the full model at 5 kHz: why the cutoff exists

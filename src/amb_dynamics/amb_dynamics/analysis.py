@@ -82,7 +82,7 @@ def motion_text(motion: BaseMotion) -> str:
 def run_modes(args):
     s = setup(args)
     results = [modes_at_speed(s.model, s.loop, v) for v in args.speed_rpm]
-    digital = digital_over_speeds(s.model, s.cfg, args.speed_rpm)
+    digital = digital_over_speeds(build_structure(s.cfg), s.cfg, args.speed_rpm)
     data = {"model": describe(s.cfg, s.model), "speeds": [r.to_dict() for r in results]}
     for d, dig in zip(data["speeds"], digital, strict=True):
         d["digital_loop"] = dig
@@ -107,7 +107,7 @@ def run_campbell(args):
     t0 = time.perf_counter()
     results = campbell_data(s.model, s.loop, args.speeds)
     out = plots.campbell_figure(results, f"Campbell diagram: {describe(s.cfg, s.model)}", args.out, args.max_frequency)
-    digital = digital_over_speeds(s.model, s.cfg, args.speeds)
+    digital = digital_over_speeds(build_structure(s.cfg), s.cfg, args.speeds)
     data = {
         "png": str(out),
         "speeds_rpm": args.speeds.tolist(),
