@@ -72,6 +72,16 @@ class BearingLaw:
         """The linear law of the paper's model, ki i - ks x (N)."""
         return self.ki * np.asarray(i, dtype=float) - self.ks * np.asarray(x, dtype=float)
 
+    def current_gain(self, x, i) -> np.ndarray:
+        """dF/di at (x, i) (N/A): 2c [(i0 + i)/(g0 - x)^2 + (i0 - i)/(g0 + x)^2]; ki at the centre."""
+        x, i = np.asarray(x, dtype=float), np.asarray(i, dtype=float)
+        return 2 * self.c * ((self.i0 + i) / (self.g0 - x) ** 2 + (self.i0 - i) / (self.g0 + x) ** 2)
+
+    def negative_stiffness(self, x, i) -> np.ndarray:
+        """-dF/dx at (x, i) (N/m, < 0): -2c [(i0 + i)^2/(g0 - x)^3 + (i0 - i)^2/(g0 + x)^3]; ks at the centre."""
+        x, i = np.asarray(x, dtype=float), np.asarray(i, dtype=float)
+        return -2 * self.c * ((self.i0 + i) ** 2 / (self.g0 - x) ** 3 + (self.i0 - i) ** 2 / (self.g0 + x) ** 3)
+
     def correction(self, x: np.ndarray, i: np.ndarray) -> np.ndarray:
         """force(x, i) - linear_force(x, i) for a few axes: the plant's per-step path, in floats (the same
         expressions as magnet_forces, a few times faster than its array form on four axes)."""

@@ -15,6 +15,7 @@ from .config import RotorConfig
 from .control_law import is_plain_pid
 from .control_runtime import ControlLaw
 from .motion import BaseMotion
+from .operating_point import operating_point
 from .rig_plant import RigPlant
 from .structure import StructuralModel
 
@@ -58,32 +59,29 @@ def control_law_runtime(cfg: RotorConfig, gains, Ts: float, current_limit: float
     return ControlLaw(cfg, coeffs, current_limit, delay)
 
 
+def start_gain(cfg: RotorConfig, gains, Ts: float) -> np.ndarray:
+    """Current per displacement of the controller's first step (the PID: -kp; :class:`ControlLaw.start_gain`)."""
+    law = control_law_runtime(cfg, gains, Ts, None)
+    return law.start_gain if isinstance(law, ControlLaw) else -gains.kp * np.eye(4)
+
+
 def levitated_state(plant: RigPlant, cfg: RotorConfig) -> np.ndarray:
     """Plant state at rest on the controller under gravity (base level, no spin effects): zero without gravity.
 
-    Steady state of the digital controller's start gain K0 (for the PID i = offset - kp y_m: derivative zero,
-    integrator empty) with the bias-current offset: (K_B + ks Ba Ba^T - ki Ba K0 Ba^T) q = f_g + ki Ba offset;
-    the amplifier state = i, the filter state = y.  The run then starts levitated rather than dropping the
-    overhung disk onto its shaft's elastic sag at t = 0.
+    The operating point of :func:`amb_dynamics.operating_point.operating_point` (the controller's start gain
+    with the bias-current offset); the amplifier state = i, the filter state = y.  The run then starts levitated
+    rather than dropping the overhung disk onto its shaft's elastic sag at t = 0.
     """
     model, lin = plant.model, plant.lin
     x = np.zeros(plant.N)
     if not plant.g:
         return x
-    g = model.gains
-    off = np.array(cfg.controller.bias_current_offset or (0.0,) * 4, dtype=float)
-    law = control_law_runtime(cfg, g, plant.Ts, None)
-    K0 = law.start_gain if isinstance(law, ControlLaw) else -g.kp * np.eye(4)
-    K = model.mats["K_B"] + g.ks * model.Ba @ model.Ba.T - g.ki * model.Ba @ K0 @ model.Ba.T
-    f = plant.S[:, -2:] @ np.array([-plant.g, 0.0]) + g.ki * model.Ba @ off
-    q = np.linalg.solve(K, f)
-    n = model.n
-    x[:n] = q
-    y = model.Ba.T @ q
+    op = operating_point(model, cfg, start_gain(cfg, model.gains, plant.Ts))
+    x[: model.n] = op.q
     if lin.layout.amp is not None:
-        x[lin.layout.amp] = off + K0 @ y
+        x[lin.layout.amp] = op.i
     if lin.layout.sens is not None:
-        x[lin.layout.measured] = y
+        x[lin.layout.measured] = op.y
     return x
 
 

@@ -85,6 +85,21 @@ class PlantStepper:
             self.Bf[n : 2 * n] = Minv @ model.forcing
         self._cache: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
+    def set_bearing_gains(self, ki: np.ndarray, ks: np.ndarray) -> None:
+        """Per-axis current gain ki (N/A) and negative stiffness ks (N/m) in place of the config's (the bearing law
+        linearised at an operating point: :mod:`amb_dynamics.operating_point`)."""
+        model, n = self.model, self.n
+        g, Ba, Minv = model.gains, model.Ba, sla.inv(model.M)
+        self.Ap0 = self.Ap0.copy()
+        self.Ap0[n : 2 * n, :n] -= Minv @ Ba @ np.diag(np.asarray(ks) - g.ks) @ Ba.T
+        force = Minv @ Ba @ np.diag(ki)  # current -> acceleration
+        if self.layout.amp is not None:
+            self.Ap0[n : 2 * n, self.layout.amp] = force
+        else:
+            self.Bp = self.Bp.copy()
+            self.Bp[n : 2 * n] = force
+        self._cache.clear()
+
     @property
     def labels(self) -> tuple[str, ...]:
         """Names of the plant state x_p: q, d_q, then amp_<channel> and sens_<channel> when present."""

@@ -29,6 +29,7 @@ from scipy.optimize import minimize_scalar
 from .config import RotorConfig
 from .control_law import continuous_controller, discrete_controller, discrete_pid_state_space, pid_state_space  # noqa: F401  (re-exported)
 from .errors import InputError
+from .operating_point import operating_point, tangent_gains
 from .sampled import PlantStepper
 from .state_space import StateSpace
 from .state_space import close_loop as sensitivity_state_space
@@ -49,13 +50,26 @@ def plant_state_space(model: StructuralModel, cfg: RotorConfig, speed_rpm: float
 
     The same generator as the plant node's ZOH step (:class:`amb_dynamics.sampled.PlantStepper`): negative
     stiffness ks included, no controller.  States [q; q'] and, when the config has them, the amplifier and
-    sensor-filter states; the output is what the controller reads (the sensor filter's output).
+    sensor-filter states; the output is what the controller reads (the sensor filter's output).  A nonlinear
+    bearing law is linearised at the levitated operating point (:mod:`amb_dynamics.operating_point`).
     """
-    stepper = PlantStepper(model, _speed_cfg(cfg, speed_rpm), 1.0, forcing=False)
+    stepper = _stepper(model, _speed_cfg(cfg, speed_rpm), 1.0)
     zero = np.zeros(3)
     A = _generator(stepper, zero)
     C = _measured_output(stepper, model, A.shape[0])
     return StateSpace(A, stepper.Bp.copy(), C, np.zeros((C.shape[0], stepper.Bp.shape[1])))
+
+
+def _stepper(model: StructuralModel, cfg: RotorConfig, Ts: float) -> PlantStepper:
+    """The plant node's generator, its bearing law linearised at the levitated operating point (gravity, bias
+    offsets: :mod:`amb_dynamics.operating_point`) where that differs from the centre (a nonlinear law)."""
+    stepper = PlantStepper(model, cfg, Ts, forcing=False)
+    if cfg.bearings.force_law == "nonlinear":
+        from .rig_loop import start_gain
+
+        op = operating_point(model, cfg, start_gain(cfg, model.gains, 1.0 / cfg.controller.rate_hz))
+        stepper.set_bearing_gains(*tangent_gains(cfg, op))
+    return stepper
 
 
 def _measured_output(stepper: PlantStepper, model: StructuralModel, n_states: int) -> np.ndarray:
@@ -76,7 +90,7 @@ def sampled_plant_state_space(
     model: StructuralModel, cfg: RotorConfig, Ts: float, speed_rpm: float | None = None
 ) -> StateSpace:
     """ZOH discretisation of :func:`plant_state_space` at sample period Ts (s): exactly the plant node's step."""
-    stepper = PlantStepper(model, _speed_cfg(cfg, speed_rpm), Ts, forcing=False)
+    stepper = _stepper(model, _speed_cfg(cfg, speed_rpm), Ts)
     E, Gam, _ = stepper.matrices(np.zeros(3), np.zeros(3))
     C = _measured_output(stepper, model, E.shape[0])
     return StateSpace(E.copy(), Gam.copy(), C, np.zeros((C.shape[0], Gam.shape[1])), dt=Ts)

@@ -1,0 +1,74 @@
+"""The levitated operating point and the bearing law's tangent there (amb_dynamics.operating_point).
+
+Checks: the tangent against the closed form at the centre (ki, ks (1 + (i/i0)^2)) and against central finite
+differences of the force law off the centre; the operating point satisfies the static balance it claims; and
+the sensitivity model of a nonlinear rig under gravity uses the tangent (its plant differs from the centred one
+by exactly the tangent's change of stiffness).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from amb_dynamics.config import load_config
+from amb_dynamics.magnet import BearingLaw
+from amb_dynamics.operating_point import operating_point, tangent_gains
+from amb_dynamics.rig_loop import start_gain
+from amb_dynamics.sensitivity import plant_state_space
+from amb_dynamics.structure import build_structure
+
+
+@pytest.fixture(scope="module")
+def rig():
+    cfg = load_config(None)
+    assert cfg.bearings.force_law == "nonlinear" and cfg.gravity.enabled
+    return cfg, build_structure(cfg)
+
+
+def test_tangent_closed_form_at_the_centre(rig):
+    cfg, _ = rig
+    law = BearingLaw.from_config(cfg.bearings)
+    i = np.array([0.0, 3.0, -7.5, 9.0])
+    x = np.zeros(4)
+    assert law.current_gain(x, i) == pytest.approx(np.full(4, law.ki), rel=1e-12)
+    assert law.negative_stiffness(x, i) == pytest.approx(law.ks * (1 + (i / law.i0) ** 2), rel=1e-12)
+
+
+def test_tangent_against_finite_differences_off_the_centre(rig):
+    cfg, _ = rig
+    law = BearingLaw.from_config(cfg.bearings)
+    x, i = np.array([1e-4, -2e-4, 3e-5]), np.array([4.0, -6.0, 9.2])
+    hx, hi = 1e-9, 1e-5
+    dfdx = (law.force(x + hx, i) - law.force(x - hx, i)) / (2 * hx)
+    dfdi = (law.force(x, i + hi) - law.force(x, i - hi)) / (2 * hi)
+    assert law.negative_stiffness(x, i) == pytest.approx(-dfdx, rel=1e-6)
+    assert law.current_gain(x, i) == pytest.approx(dfdi, rel=1e-6)
+
+
+def test_operating_point_balances_gravity(rig):
+    cfg, model = rig
+    K0 = start_gain(cfg, model.gains, 1.0 / cfg.controller.rate_hz)
+    op = operating_point(model, cfg, K0)
+    g, Ba = model.gains, model.Ba
+    off = np.array(cfg.controller.bias_current_offset)
+    assert op.i == pytest.approx(off - g.kp * op.y, rel=1e-12)  # the PD start: offset - kp y
+    # (K_B + ks Ba Ba^T) q = f_g + ki Ba i: the bearing holds the rotor's weight
+    from amb_dynamics.gravity import gravity_load_shapes
+
+    f_g = gravity_load_shapes(model.fe)[:, 0] * -cfg.gravity.g
+    lhs = (model.mats["K_B"] + g.ks * Ba @ Ba.T) @ op.q
+    assert np.abs(lhs - f_g - g.ki * Ba @ op.i).max() <= 1e-9 * np.abs(f_g).max()
+    assert np.abs(op.y).max() < 1e-4 and np.abs(op.i).max() > 1.0  # micrometres of sag, amperes of current
+
+
+def test_sensitivity_plant_uses_the_tangent(rig):
+    cfg, model = rig
+    centred = plant_state_space(model, load_config(None, ["bearings.force_law=linear"]), 0.0)
+    tangent = plant_state_space(model, cfg, 0.0)
+    op = operating_point(model, cfg, start_gain(cfg, model.gains, 1.0 / cfg.controller.rate_hz))
+    _, ks = tangent_gains(cfg, op)
+    n, Ba = model.n, model.Ba
+    dK = -np.linalg.solve(model.M, Ba @ np.diag(ks - cfg.bearings.displacement_stiffness) @ Ba.T)
+    assert np.abs(tangent.A[n : 2 * n, :n] - centred.A[n : 2 * n, :n] - dK).max() <= 1e-9 * np.abs(dK).max()
+    assert np.abs(ks / cfg.bearings.displacement_stiffness - 1).max() > 0.1  # the heavy AMB: >10 % softer
