@@ -19,7 +19,7 @@ export OPENBLAS_NUM_THREADS ?= 1
 PKGS := amb_dynamics amb_ros base_motion amb_plant amb_controller stability_monitor amb_bag amb_bringup
 PKG_SETUPS := $(foreach p,$(PKGS),src/$(p)/setup.py)
 
-.PHONY: demo test bench lint format venv ref clean
+.PHONY: demo test bench lint format venv ref clean chromium
 
 $(VENV)/.installed: requirements.txt $(PKG_SETUPS)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -38,8 +38,13 @@ ref: $(REF_VENV)/.installed
 demo: $(VENV)/.installed
 	$(BIN)/python tools/demo.py
 
-test: $(VENV)/.installed $(REF_VENV)/.installed
+test: $(VENV)/.installed $(REF_VENV)/.installed chromium
 	$(BIN)/python -m pytest
+
+# the commissioning report's render test opens it in Debian's headless Chromium (these machines run as root)
+chromium:
+	@command -v chromium >/dev/null || { apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null; }
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/run_all.py

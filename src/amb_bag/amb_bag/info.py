@@ -50,23 +50,37 @@ def bag_info(path) -> dict:
 def recorded_vibration(bag: Bag) -> dict | None:
     """The ISO 14839-2 grade of the run's last second, from the plant's last report on /diagnostics in the bag
     (amb_ros.report_keys); None if the bag has no such report."""
+    last = None
+    for values in reports(bag, PLANT_STATUS):
+        if (vib := read_vibration(values)) is not None:
+            last = {**vib, "final_report": values.get("final") == "true"}
+    return last
+
+
+def last_report(bag: Bag, name: str) -> dict[str, str] | None:
+    """The key/value pairs of node ``name``'s last /diagnostics status in the bag (its final report when it
+    wrote one); None if there is none."""
+    last = None
+    for values in reports(bag, name):
+        last = values
+    return last
+
+
+def reports(bag: Bag, name: str):
+    """Every /diagnostics status of node ``name`` in the bag, in order, as {key: value}."""
     if DIAGNOSTICS_TOPIC not in bag.topics:
-        return None
+        return
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.serialization import deserialize_message
 
-    last = None
     for _topic, _type, _log, _pub, data in bag.messages([DIAGNOSTICS_TOPIC]):
         try:
             msg = deserialize_message(data, DiagnosticArray)
-        except Exception:  # an undecodable report is recorded anyway; it is not the plant's
+        except Exception:  # an undecodable report is recorded anyway; it is not a node's
             continue
         for status in msg.status:
-            if status.name == PLANT_STATUS:
-                values = {kv.key: kv.value for kv in status.values}
-                if (vib := read_vibration(values)) is not None:
-                    last = {**vib, "final_report": values.get("final") == "true"}
-    return last
+            if status.name == name:
+                yield {kv.key: kv.value for kv in status.values}
 
 
 def _size(n: float) -> str:

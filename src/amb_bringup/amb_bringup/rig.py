@@ -95,6 +95,9 @@ def parser() -> argparse.ArgumentParser:
     from .sensitivity_cmd import add_parser as add_sensitivity_parser  # ISO 14839-3 measurement (own module)
 
     add_sensitivity_parser(sub)
+    from .report import add_parser as add_report_parser  # the HTML commissioning report (own module)
+
+    add_report_parser(sub)
     return ap
 
 
@@ -116,6 +119,10 @@ def main(argv: list[str] | None = None) -> None:
         from .sensitivity_cmd import main_sensitivity
 
         sys.exit(main_sensitivity(args))
+    if args.command == "report":
+        from .report import main_report
+
+        sys.exit(main_report(args))
     try:  # amb-rig's own arguments, then every node's parameters, before anything starts
         check_rig_args(args)  # docs/exit-codes.md: 2
         params = paramfile.prepare(args)

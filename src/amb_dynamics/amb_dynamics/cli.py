@@ -143,17 +143,29 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def main(argv: list[str] | None = None) -> int:
-    limit_blas_threads()  # first: BLAS reads its thread count when numpy loads (amb_dynamics/threads.py)
+def run_args(args: argparse.Namespace) -> tuple[dict, str]:
+    """Run one parsed verb: (JSON-able result, text).  AmbError (one line) on bad input."""
     from . import analysis, guards, unbalance_report  # import numpy
-    from .dask_exec import Interrupted
 
     runners = {"unbalance": unbalance_report.run_unbalance}  # verbs outside analysis.py
+    guards.check_args(args)
+    return runners.get(args.verb, getattr(analysis, f"run_{args.verb}", None))(args)
+
+
+def run(argv: list[str]) -> tuple[dict, str]:
+    """``amb-dynamics ARGV`` in this process (for reports that gather several analyses)."""
+    return run_args(build_parser().parse_args(argv))
+
+
+def main(argv: list[str] | None = None) -> int:
+    limit_blas_threads()  # first: BLAS reads its thread count when numpy loads (amb_dynamics/threads.py)
+    from . import guards
+    from .dask_exec import Interrupted
+
     args = build_parser().parse_args(argv)
     # the chart writes its own JSON file; --json there also prints the summary
     try:
-        guards.check_args(args)
-        result, text = runners.get(args.verb, getattr(analysis, f"run_{args.verb}", None))(args)
+        result, text = run_args(args)
     except AmbError as exc:
         print(f"amb-dynamics {args.verb}: error: {exc}", file=sys.stderr)
         return 2
