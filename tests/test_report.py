@@ -92,6 +92,15 @@ def test_report_of_a_recorded_run(tmp_path, venv_bin):
     agreement = re.search(r"<td>model agreement</td><td>([\d.]+) % over (\d+) coherent bins", html)
     # nonlinear bearings, modelled at their levitated operating point (amb_dynamics.operating_point)
     assert agreement and float(agreement.group(1)) < 2.0 and int(agreement.group(2)) >= 10
+    # the band (10-40 Hz) does not resolve the peak: the model calibrated to it gives the zone, and since the rig
+    # is the model, its scales are ~1 and its zone is the model's at the operating speed
+    fit = re.search(r"<td>calibrated model</td><td>ki x([\d.]+), ks x([\d.]+), residual ([\d.]+) % RMS", html)
+    assert fit and abs(float(fit.group(1)) - 1) < 0.03 and abs(float(fit.group(2)) - 1) < 0.03, fit
+    zone = re.search(r"<td>zone at its peak</td><td>([A-D]):", html)
+    model_zone = re.search(
+        r"<td>1000</td><td>amb1_y</td>(?:<td[^>]*>[^<]*</td>){3}<td[^>]*>([A-D]|unstable)</td>", html
+    )
+    assert zone and model_zone and zone.group(1) == model_zone.group(1)
     attrs, _ = render(out, tmp_path)
     assert attrs.get("data-images") == "5" and attrs.get("data-broken") == "0"
 

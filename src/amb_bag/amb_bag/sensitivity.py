@@ -84,7 +84,7 @@ def sensitivity_report(m, notes, axis: str, limits, model_abs=None, min_coherenc
         peak["peak_db"] = db(peak["peak_abs"])
         peak["zone"] = sensitivity_zone(peak["peak_abs"], limits) if peak["resolved"] else None
         if not peak["resolved"]:
-            out["notes"].append("no zone from an unresolved peak: see the model's peak and zone")
+            out["notes"].append("no zone from an unresolved peak: see the calibrated model's (fitted_model)")
     if model_abs is not None:
         good = m.coherence >= min_coherence
         rel = np.abs(m.abs - model_abs) / model_abs
@@ -92,6 +92,29 @@ def sensitivity_report(m, notes, axis: str, limits, model_abs=None, min_coherenc
         out["coherent_bins"] = int(good.sum())
         out["max_rel_error_where_coherent"] = float(rel[good].max()) if good.any() else None
     return out
+
+
+def add_fitted_model(report: dict, m, cfg, axis: str, speed_rpm: float | None = None) -> None:
+    """An unresolved peak: calibrate the digital-loop model to the coherent bins (ki, ks scales) and give the zone at
+    its peak (``report["fitted_model"]``; :mod:`amb_dynamics.sensitivity_fit`)."""
+    from amb_dynamics.sensitivity_fit import fit_sensitivity
+    from amb_dynamics.structure import build_structure
+
+    good = m.coherence >= report["min_coherence"]
+    if report["peak"]["resolved"] or good.sum() < 3:
+        return
+    model = build_structure(cfg)
+    j = model.channels.index(axis)
+    fit = fit_sensitivity(model, cfg, j, m.frequency_hz[good], m.S[good], speed_rpm=speed_rpm)
+    report["fitted_model"] = fit
+    if fit["good"]:
+        report["notes"].append(
+            f"zone {fit['zone']} at the calibrated model's peak |S| {fit['peak_abs']:.4g} at {fit['peak_hz']:.4g} Hz "
+            f"(ki x{fit['ki_scale']:.4f}, ks x{fit['ks_scale']:.4f}, {100 * fit['rms_rel_residual']:.2f} % RMS residual "
+            f"over {fit['bins']} coherent bins)"
+        )
+    else:
+        report["notes"].append(fit["reason"])
 
 
 def model_abs_at(cfg, axis: str, frequency_hz: np.ndarray, speed_rpm: float | None = None) -> np.ndarray:
@@ -129,6 +152,8 @@ def run_bag_sensitivity(args) -> int:
     limits = cfg.iso14839.sensitivity_zone_limits if cfg else (3.0, 4.0, 5.0)
     model = model_abs_at(cfg, args.axis, m.frequency_hz) if cfg else None
     report = sensitivity_report(m, notes, args.axis, limits, model)
+    if cfg:
+        add_fitted_model(report, m, cfg, args.axis)
     if args.out:
         from amb_dynamics.plots_sensitivity import measured_figure
 

@@ -194,13 +194,20 @@ def _injected_axis(bag) -> str | None:
 
 
 def _measured(bag_path: str, cfg, axis: str, png: Path, resolution_hz: float, settle_s: float) -> dict:
-    from amb_bag.sensitivity import measured_sensitivity, model_abs_at, read_injection, sensitivity_report
+    from amb_bag.sensitivity import (
+        add_fitted_model,
+        measured_sensitivity,
+        model_abs_at,
+        read_injection,
+        sensitivity_report,
+    )
     from amb_dynamics.plots_sensitivity import measured_figure
 
     t, e, ym = read_injection(bag_path, axis)
     m, notes = measured_sensitivity(t, e, ym, resolution_hz, settle_s)
     limits = cfg.iso14839.sensitivity_zone_limits
     report = sensitivity_report(m, notes, axis, limits, model_abs_at(cfg, axis, m.frequency_hz))
+    add_fitted_model(report, m, cfg, axis)
     measured_figure(report, limits, f"{axis}: measured and model", png)
-    return {k: report[k] for k in ("axis", "peak", "resolution_hz", "coherent_bins", "max_rel_error_where_coherent",
-                                   "notes") if k in report}  # fmt: skip
+    keys = ("axis", "peak", "resolution_hz", "coherent_bins", "max_rel_error_where_coherent", "notes", "fitted_model")
+    return {k: report[k] for k in keys if k in report}

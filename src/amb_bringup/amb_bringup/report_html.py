@@ -128,6 +128,11 @@ def _measured(doc: dict) -> str:
         ("frequency resolution", f"{m['resolution_hz']:g} Hz"),
         ("model agreement", "-" if err is None else f"{100 * err:.2f} % over {m['coherent_bins']} coherent bins"),
     ]
+    fit = m.get("fitted_model")
+    if fit:
+        rows.append(("calibrated model", f"ki x{fit['ki_scale']:.4f}, ks x{fit['ks_scale']:.4f}, residual "
+                     f"{100 * fit['rms_rel_residual']:.2f} % RMS"))  # fmt: skip
+        rows.append(("zone at its peak", f"{fit['zone'] or '-'}: |S| {fit['peak_abs']:.4g} at {fit['peak_hz']:.4g} Hz"))
     return (
         "<h3>Measured on the running loop</h3>"
         + _table(["item", "value"], rows)

@@ -130,13 +130,20 @@ def main_sensitivity(args) -> int:
 
 def analyse(args, cfg, model, j: int, band, bag: Path) -> dict:
     """Measured S_jj from the bag, the model's curve at the same frequencies and the model's peak and zone."""
-    from amb_bag.sensitivity import measured_sensitivity, model_abs_at, read_injection, sensitivity_report
+    from amb_bag.sensitivity import (
+        add_fitted_model,
+        measured_sensitivity,
+        model_abs_at,
+        read_injection,
+        sensitivity_report,
+    )
     from amb_dynamics.analysis_sensitivity import model_sensitivity
 
     t, e, ym = read_injection(bag, args.axis)
     m, notes = measured_sensitivity(t, e, ym, args.resolution, args.settle, band)
     report = sensitivity_report(m, notes, args.axis, cfg.iso14839.sensitivity_zone_limits,
                                 model_abs_at(cfg, args.axis, m.frequency_hz))  # fmt: skip
+    add_fitted_model(report, m, cfg, args.axis)
     mod = model_sensitivity(model, cfg, cfg.spin_speed_rpm, "sampled", band, 2000, [args.axis])
     report["model_peak"] = mod["axes"][args.axis]
     report.update(mode=args.mode, kind=args.kind, amplitude_m=args.amplitude, band_hz=list(band),
