@@ -110,8 +110,8 @@ def add_fitted_model(report: dict, m, cfg, axis: str, speed_rpm: float | None = 
     if fit["good"]:
         report["notes"].append(
             f"zone {fit['zone']} at the calibrated model's peak |S| {fit['peak_abs']:.4g} at {fit['peak_hz']:.4g} Hz "
-            f"(ki x{fit['ki_scale']:.4f}, ks x{fit['ks_scale']:.4f}, {100 * fit['rms_rel_residual']:.2f} % RMS residual "
-            f"over {fit['bins']} coherent bins)"
+            f"(ki x{fit['ki_scale']:.4f}, ks x{fit['ks_scale']:.4f}, {100 * fit['rms_rel_residual']:.2f} % RMS "
+            f"residual over {fit['bins']} coherent bins)"
         )
     else:
         report["notes"].append(fit["reason"])
