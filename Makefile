@@ -44,7 +44,8 @@ test: $(VENV)/.installed $(REF_VENV)/.installed chromium
 # the commissioning report's render test opens it in Debian's headless Chromium (these machines run as root)
 chromium:
 	@command -v chromium >/dev/null || { apt-get update -qq && \
-	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null; }
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null; } || \
+	  echo "make: could not install chromium (apt-get as root): tests/test_report.py will say so"
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/run_all.py

@@ -65,13 +65,14 @@ def main_report(args: argparse.Namespace) -> int:
     return 0
 
 
-def _config_args(args, tmp: Path) -> tuple[list[str], object]:
-    """(--config/--set arguments for the amb-dynamics verbs, the RotorConfig) of the report."""
+def _config_args(args, tmp: Path) -> tuple[list[str], object, str]:
+    """(--config/--set arguments for the amb-dynamics verbs, the RotorConfig, its name) of the report."""
     from amb_dynamics.config import load_config, to_dict
 
+    sets = [f"--set={s}" for s in args.set]
     if args.config or not args.bag:
         cfg = load_config(args.config, args.set)
-        return (["--config", args.config] if args.config else []) + [f"--set={s}" for s in args.set], cfg
+        return (["--config", args.config] if args.config else []) + sets, cfg, str(cfg.source)
     import yaml
 
     from amb_bag.reader import Bag
@@ -82,7 +83,7 @@ def _config_args(args, tmp: Path) -> tuple[list[str], object]:
         raise InputError(f"{args.bag}: the bag has no recorded config (/amb_plant/config): give --config")
     path = tmp / "recorded.yaml"
     path.write_text(yaml.safe_dump(to_dict(rec), sort_keys=False))
-    return ["--config", str(path)] + [f"--set={s}" for s in args.set], load_config(path, args.set)
+    return ["--config", str(path), *sets], load_config(path, args.set), f"{args.bag} (the run's recorded config)"
 
 
 def gather(args, tmp: Path) -> dict:
@@ -90,7 +91,7 @@ def gather(args, tmp: Path) -> dict:
     from amb_dynamics.cli import run
     from amb_dynamics.control_law import describe as controller_text
 
-    common, cfg = _config_args(args, tmp)
+    common, cfg, name = _config_args(args, tmp)
     op = cfg.spin_speed_rpm
     speeds = args.speeds if args.speeds is not None else sorted({0.0, op})
     top = cfg.max_speed_rpm or max(3000.0, 1.5 * op)
@@ -108,8 +109,8 @@ def gather(args, tmp: Path) -> dict:
                              "--frequency", args.chart_frequency, "--controller", args.chart_controller,
                              "--workers", "1", "--no-cache", "--out", str(tmp / "chart.png")])  # fmt: skip
     doc = {
-        "title": f"Commissioning report: {Path(str(cfg.source)).name}",
-        "config": str(cfg.source),
+        "title": f"Commissioning report: {Path(name.split(' (')[0]).name}",
+        "config": name,
         "rotor": modes["model"],
         "controller": _controller_rows(cfg, controller_text(cfg)),
         "modes": modes["speeds"],

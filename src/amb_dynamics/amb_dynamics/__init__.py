@@ -49,6 +49,16 @@ _API = {
     "SampledLoop": "sampled",
     "SampledRun": "sampled",
     "DiscretePID": "amb",
+    # controllers and sensitivity (ISO 14839-3)
+    "StateSpace": "state_space",
+    "close_loop": "state_space",
+    "continuous_controller": "control_law",
+    "discrete_controller": "control_law",
+    "ControlLaw": "control_runtime",
+    "loop_state_spaces": "sensitivity",
+    "sensitivity_matrix": "sensitivity",
+    "fit_sensitivity": "sensitivity_fit",
+    "levitated_operating_point": "operating_point:operating_point",
     # the online estimator
     "StreamingEstimator": "estimator",
     "EstimatorConfig": "estimator",
