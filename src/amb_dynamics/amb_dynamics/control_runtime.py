@@ -12,7 +12,7 @@ import numpy as np
 
 from .amb import DiscretePID, DiscretePIDCoefficients
 from .config import RotorConfig
-from .control_law import discrete_filters, discrete_user
+from .control_law import discrete_filters, discrete_user, is_plain_pid
 from .state_space import StateSpace
 
 
@@ -101,3 +101,12 @@ class ControlLaw:
         if self.delay:
             u, self.u_prev = self.u_prev, u
         return u
+
+
+def new_control_law(
+    cfg: RotorConfig, coeffs: DiscretePIDCoefficients, current_limit: float | None, delay: int
+) -> DiscretePID | ControlLaw:
+    """The digital controller of cfg: the plain DiscretePID, or the ControlLaw of its filters or state space."""
+    if is_plain_pid(cfg):
+        return DiscretePID(coeffs, 4, current_limit, delay=delay)
+    return ControlLaw(cfg, coeffs, current_limit, delay)

@@ -12,8 +12,7 @@ import numpy as np
 
 from .amb import DiscretePID, DiscretePIDCoefficients
 from .config import RotorConfig
-from .control_law import is_plain_pid
-from .control_runtime import ControlLaw
+from .control_runtime import ControlLaw, new_control_law
 from .motion import BaseMotion
 from .operating_point import operating_point
 from .rig_plant import RigPlant
@@ -51,12 +50,10 @@ class RigController:
 
 
 def control_law_runtime(cfg: RotorConfig, gains, Ts: float, current_limit: float | None) -> DiscretePID | ControlLaw:
-    """The digital controller of cfg at period Ts: the plain DiscretePID, or the ControlLaw of filters/state space."""
-    coeffs = DiscretePIDCoefficients.from_gains(gains, Ts)
-    delay = cfg.controller.delay_samples
-    if is_plain_pid(cfg):
-        return DiscretePID(coeffs, 4, current_limit, delay=delay)
-    return ControlLaw(cfg, coeffs, current_limit, delay)
+    """The digital controller of cfg at period Ts (:func:`amb_dynamics.control_runtime.new_control_law`)."""
+    return new_control_law(
+        cfg, DiscretePIDCoefficients.from_gains(gains, Ts), current_limit, cfg.controller.delay_samples
+    )
 
 
 def start_gain(cfg: RotorConfig, gains, Ts: float) -> np.ndarray:

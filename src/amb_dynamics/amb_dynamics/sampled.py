@@ -20,7 +20,7 @@ import scipy.linalg as sla
 from .amb import DiscretePID, DiscretePIDCoefficients
 from .config import RotorConfig
 from .control_law import discrete_controller, is_plain_pid
-from .control_runtime import ControlLaw
+from .control_runtime import ControlLaw, new_control_law
 from .motion import BaseMotion
 from .plant_dynamics import PlantDynamics, StateLayout, open_loop_plant
 from .structure import StructuralModel
@@ -171,9 +171,7 @@ class SampledLoop:
         self.controller = discrete_controller(cfg, model.gains, self.Ts, self.delay)
 
     def new_controller(self, current_limit: float | None = None) -> DiscretePID | ControlLaw:
-        if self.plain_pid:
-            return DiscretePID(self.pid_coeffs, 4, current_limit, delay=self.delay)
-        return ControlLaw(self.cfg, self.pid_coeffs, current_limit, self.delay)
+        return new_control_law(self.cfg, self.pid_coeffs, current_limit, self.delay)
 
     def simulate(self, motion: BaseMotion, steps: int, x0: np.ndarray) -> SampledRun:
         """The closed loop exactly as the node suite runs it (lockstep), without saturation."""
