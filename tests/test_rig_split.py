@@ -62,17 +62,32 @@ class FakeGraph:
         return self.others.get(node, self.diag)
 
 
+class Clock:
+    """A monotonic clock the test moves by hand."""
+
+    def __init__(self):
+        self.t = 100.0
+
+    def __call__(self):
+        return self.t
+
+    def advance(self, dt):
+        self.t += dt
+
+
 def test_the_plant_side_ends_when_the_controller_has_left():
-    graph = FakeGraph()
-    peer = split.PeerEnd(graph, graph, parsed("--only", "plant", "--mode", "realtime"))
+    graph, clock = FakeGraph(), Clock()
+    peer = split.PeerEnd(graph, graph, parsed("--only", "plant", "--mode", "realtime"), clock=clock)
     assert peer.active and not peer.owns_end and peer.topic == m.CURRENT
     assert not peer.ended()  # never there yet: still starting
+    clock.advance(60.0)
+    assert not peer.ended()  # however long: a controller that never came has not left
     graph.count = 1
-    peer._next = 0.0
+    clock.advance(0.1)
     assert not peer.ended()
     graph.count = 0
-    peer._next = 0.0
-    assert peer.ended() and "left" in peer.reason
+    clock.advance(0.1)
+    assert peer.ended() and "left" in peer.reason  # at once: the plant holds the last command only briefly
     errors = ["plant reported ERROR: commands stopped 1 time(s): held 10 samples, then zero current for 3 samples",
               "controller exited unexpectedly"]  # fmt: skip
     kept, notes = split.forgive_final_loss(errors, peer)
@@ -83,14 +98,14 @@ def test_the_plant_side_ends_when_the_controller_has_left():
 
 
 def test_the_host_side_in_lockstep_ends_when_the_plant_has_finished():
-    graph = FakeGraph()
-    peer = split.PeerEnd(graph, graph, parsed("--no-plant"))
+    graph, clock = FakeGraph(), Clock()
+    peer = split.PeerEnd(graph, graph, parsed("--no-plant"), clock=clock)
     assert peer.active and peer.owns_end and peer.topic == m.DISPLACEMENT
     graph.count = 1
     graph.diag = {"final": False, "message": "running: 10 steps"}
     assert not peer.ended()
     graph.diag = {"final": True, "message": "finished: 500 steps"}
-    peer._next = 0.0
+    clock.advance(0.1)
     assert peer.ended() and peer.reason == "the plant finished"
     assert split.forgive_final_loss(["plant reported ERROR: commands stopped 1 time(s)"], peer)[1] == []
     # realtime host side and full rigs: amb-rig's own --duration ends the run
@@ -100,13 +115,38 @@ def test_the_host_side_in_lockstep_ends_when_the_plant_has_finished():
 
 def test_the_host_side_ends_when_a_plant_it_never_discovered_itself_has_gone():
     """A short lockstep run can end before amb-rig's own node discovers the remote plant, and its final report can be
-    lost: the controller's answered samples prove the plant was there, so its absence now means it has gone."""
-    graph = FakeGraph()
-    peer = split.PeerEnd(graph, graph, parsed("--no-plant"))
-    graph.others["amb_controller"] = {"final": False, "message": "running", "values": {"samples answered": "0"}}
+    lost: the controller's answered samples prove the plant was there, so their end, with no publisher in sight for
+    UNSEEN_GONE_AFTER_S, means it has gone."""
+    graph, clock = FakeGraph(), Clock()
+    peer = split.PeerEnd(graph, graph, parsed("--no-plant"), clock=clock)
+    controller = {"final": False, "message": "running", "values": {"samples answered": "0"}}
+    graph.others["amb_controller"] = controller
     assert not peer.ended()  # no plant yet, and nothing answered: still starting
-    graph.others["amb_controller"]["values"]["samples answered"] = "501"
-    peer._next = 0.0
-    assert not peer.ended()  # seen now (through the controller); the publisher count is checked on the next poll
-    peer._next = 0.0
+    clock.advance(30.0)
+    assert not peer.ended()
+    controller["values"]["samples answered"] = "501"
+    clock.advance(0.1)
+    assert not peer.ended() and peer.seen and not peer.saw_publisher
+    clock.advance(split.UNSEEN_GONE_AFTER_S - 0.2)
+    assert not peer.ended()  # this process has not discovered the plant (yet): not gone
+    controller["values"]["samples answered"] = "900"
+    clock.advance(0.3)
+    assert not peer.ended()  # the controller still answers it: the plant is there, whatever this graph says
+    clock.advance(split.UNSEEN_GONE_AFTER_S - 0.2)
+    assert not peer.ended()
+    clock.advance(0.3)
     assert peer.ended() and "has no publisher" in peer.reason
+
+
+def test_a_plant_seen_by_the_controller_first_is_not_taken_for_gone():
+    """The race of the two-host lockstep run: the controller answers the remote plant before amb-rig's own node has
+    discovered the plant's publisher; one poll later the plant must not be declared gone."""
+    graph, clock = FakeGraph(), Clock()
+    peer = split.PeerEnd(graph, graph, parsed("--no-plant"), clock=clock)
+    graph.others["amb_controller"] = {"final": False, "message": "running", "values": {"samples answered": "40"}}
+    for _ in range(20):
+        clock.advance(split.PEER_POLL_S)
+        assert not peer.ended()
+    graph.count = 1  # discovered now
+    clock.advance(split.PEER_POLL_S)
+    assert not peer.ended() and peer.saw_publisher

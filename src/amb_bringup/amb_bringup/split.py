@@ -22,6 +22,7 @@ from amb_ros.discovery import CHOICES
 
 SIDES = ("plant", "host")
 PEER_POLL_S = 0.1
+UNSEEN_GONE_AFTER_S = 6.0  # two of Fast DDS's 3 s participant announcement periods
 PLANT_NODE = "amb_plant"
 CONTROLLER_NODE = "amb_controller"
 
@@ -81,45 +82,59 @@ def hold_locks(hold_run_lock, domain: str, args, wait_s: float, on_wait) -> list
 
 
 class PeerEnd:
-    """Has the other side of a split run ended?  The host side watches the plant, the plant side the controller."""
+    """Has the other side of a split run ended?  The host side watches the plant, the plant side the controller.
 
-    def __init__(self, node, collector, args):
-        self.node, self.collector = node, collector
+    A peer whose publisher this process has seen has gone when that publisher leaves this process's graph (at once:
+    a realtime plant holds the last command only briefly).  A plant known only from the controller's answered
+    samples (this process's own discovery can lag the controller's by an announcement period) has gone when no
+    publisher has appeared and the controller's count of answered samples has not grown for UNSEEN_GONE_AFTER_S."""
+
+    def __init__(self, node, collector, args, clock=time.monotonic):
+        self.node, self.collector, self.clock = node, collector, clock
         only_plant = getattr(args, "only", None) == "plant"
         self.active = (only_plant and args.mode == "realtime") or (args.no_plant and args.mode == "lockstep")
         self.owns_end = args.no_plant and args.mode == "lockstep"  # no wall-time end: the plant's end is the end
         self.topic = m.CURRENT if only_plant else m.DISPLACEMENT
-        self.seen = False
+        self.seen = False  # the peer was there: its publisher, or (host side) samples the controller answered
+        self.saw_publisher = False
         self.reason = ""
         self._next = 0.0
+        self._present_at: float | None = None  # when the peer last showed it was there
+        self._answered = 0
 
     def ended(self) -> bool:
         """True once the peer was there and has gone (or, for a plant, reported that it finished)."""
         if not self.active or self.reason:
             return bool(self.reason)
-        now = time.monotonic()
+        now = self.clock()
         if now < self._next:
             return False
         self._next = now + PEER_POLL_S
         count = len(self.node.get_publishers_info_by_topic(self.topic))
         diag = self.collector.get(PLANT_NODE) if self.topic == m.DISPLACEMENT else None
+        answered = self._controller_answered()
+        if count > 0 or answered != self._answered or self._present_at is None:
+            self._present_at = now
+        self._answered = answered
+        self.saw_publisher = self.saw_publisher or count > 0
+        self.seen = self.seen or count > 0 or answered > 0
+        gone = count == 0 if self.saw_publisher else now - self._present_at >= UNSEEN_GONE_AFTER_S
         if diag is not None and diag["final"] and diag["message"].startswith("finished"):
             self.reason = "the plant finished"
-        elif self.seen and count == 0:
+        elif self.seen and gone:
             self.reason = f"the other side left ({self.topic} has no publisher)"
-        self.seen = self.seen or count > 0 or self._controller_answered()
         return bool(self.reason)
 
-    def _controller_answered(self) -> bool:
-        """The host side's controller has answered the plant's samples: the plant was there, even if this process
-        discovered it too late to see its publisher (a short lockstep run can end within one discovery round)."""
+    def _controller_answered(self) -> int:
+        """The samples the host side's controller has answered (0 on the plant side, or before its first report):
+        proof that the plant was there, even if this process has not discovered its publisher (yet)."""
         if self.topic != m.DISPLACEMENT:
-            return False
+            return 0
         diag = self.collector.get(CONTROLLER_NODE)
         try:
-            return diag is not None and float(diag["values"].get("samples answered", 0)) > 0
+            return int(float(diag["values"].get("samples answered", 0))) if diag is not None else 0
         except (KeyError, TypeError, ValueError):
-            return False
+            return 0
 
 
 def forgive_final_loss(errors: list[str], peer: PeerEnd) -> tuple[list[str], list[str]]:
