@@ -14,6 +14,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from report import record
+
 BIN = Path(sys.executable).parent
 PAPER = ["--config", str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")]  # a fast plant
 RIG_DURATION = 4.0  # simulated s: 20,000 steps at 5 kHz
@@ -50,6 +52,10 @@ def main(pairs: int = PAIRS) -> dict:
               "steps_per_s_with_live": statistics.median(r[1] for r in rows)}  # fmt: skip
     print(f"  cost of --live: {100 * result['cost']:.1f} % of steps/s, median of {pairs} pairs "
           f"({100 * result['cost_min']:.1f} to {100 * result['cost_max']:.1f} %); goal < 5 %")  # fmt: skip
+    record("live view: lockstep steps/s lost with --live (no client), back-to-back pairs", [100 * c for c in costs],
+           "%", goal="< 5")  # fmt: skip
+    record("lockstep steps/s without --live (the pairs above)", [r[0] for r in rows], "steps/s")
+    record("lockstep steps/s with --live (the pairs above)", [r[1] for r in rows], "steps/s")
     return result
 
 
