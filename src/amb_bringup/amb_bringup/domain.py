@@ -16,11 +16,11 @@ from __future__ import annotations
 import time
 
 from amb_ros import messages as m
+from amb_ros.matches import full_name
 
 PROBE_S = 0.3  # graph watch before a run starts
 POLL_S = 0.05
 WATCH_PERIOD_S = 0.25
-UNKNOWN_NAME = "_NODE_NAME_UNKNOWN_"  # rmw's node name of an endpoint whose node is not known yet
 
 PUBLISHES = {  # amb-rig process name -> data topics its node publishes
     "base_motion": (m.BASE_RATES, m.IMU, m.ANGULAR_ACCELERATION),
@@ -41,7 +41,7 @@ def publishers(node, topics, more_than: int = 0) -> dict[str, list[str]]:
     for topic in topics:
         infos = node.get_publishers_info_by_topic(topic)
         if len(infos) > more_than:
-            found[topic] = sorted({_full_name(i.node_namespace, i.node_name) for i in infos})
+            found[topic] = sorted({full_name(i.node_namespace, i.node_name) for i in infos})
     return found
 
 
@@ -66,11 +66,18 @@ def describe(found: dict[str, list[str]], domain: str, when: str = "already publ
 
 
 class Watch:
-    """During a run: a topic of this run with more than its one publisher means an intruder (or a second rig)."""
+    """During a run: a second publisher on one of this run's topics means an intruder (or a second rig).
 
-    def __init__(self, node, topics, domain: str):
-        self.node, self.topics, self.domain = node, list(topics), domain
+    Two sources: this process's graph, polled every WATCH_PERIOD_S (every topic of the run), and the plant's and
+    the controller's own counts of the publishers their input subscriptions matched (``amb_ros.matches``: from
+    DDS match events, so a publisher that lived between two polls is found too), read from their /diagnostics."""
+
+    LOOP_NODES = ("amb_plant", "amb_controller")
+
+    def __init__(self, node, topics, domain: str, collector=None):
+        self.node, self.topics, self.domain, self.collector = node, list(topics), domain, collector
         self._next = 0.0
+        self.reported = False
 
     def check(self) -> str | None:
         """An error message if an intruder is publishing, else None (graph looked at every WATCH_PERIOD_S)."""
@@ -78,11 +85,26 @@ class Watch:
         if now < self._next:
             return None
         self._next = now + WATCH_PERIOD_S
-        found = publishers(self.node, self.topics, more_than=1)
-        return describe(found, self.domain, "joined this run") if found else None
+        found = {**self.matched(), **publishers(self.node, self.topics, more_than=1)}
+        return self._report(found)
 
+    def final(self) -> list[str]:
+        """After the run: the nodes' final counts (an intruder of the last moments), unless already reported."""
+        return [] if self.reported else [msg for msg in (self._report(self.matched()),) if msg]
 
-def _full_name(namespace: str, name: str) -> str:
-    if name == UNKNOWN_NAME:  # the endpoint is discovered before its node's name (ros_discovery_info) arrives
-        return "a node not yet named"
-    return f"{namespace.rstrip('/')}/{name}"
+    def matched(self) -> dict[str, list[str]]:
+        """``{topic: [publisher seen, ...]}`` of the foreign publishers that the loop's nodes have matched."""
+        found = {}
+        for name in self.LOOP_NODES if self.collector is not None else ():
+            values = (self.collector.get(name) or {}).get("values") or {}
+            for key, count in values.items():
+                if key.startswith("foreign publishers ") and count != "0":
+                    topic = key[len("foreign publishers ") :]
+                    found[topic] = values.get(f"publishers seen {topic}", "none left to name").split(", ")
+        return found
+
+    def _report(self, found: dict[str, list[str]]) -> str | None:
+        if not found:
+            return None
+        self.reported = True
+        return describe(found, self.domain, "joined this run")

@@ -195,7 +195,7 @@ def run(args, cfg, lock) -> int:
             shutil.rmtree(log_dir, ignore_errors=True)
         print(f"amb-rig: {describe(found, domain)}", file=sys.stderr)
         return EXIT_FAILED
-    watch = Watch(collector.node, topics, domain)
+    watch = Watch(collector.node, topics, domain, collector)
     sup = Supervisor(
         log_dir, child_env(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1"), tuple(fh.fileno() for fh in lock)
     )
@@ -219,6 +219,7 @@ def run(args, cfg, lock) -> int:
         collector.close()
         rclpy.try_shutdown()
     errors += judge(sup, collector, interrupted)
+    errors += watch.final()  # a publisher matched in the run's last moments
     errors, notes = split.forgive_final_loss(errors, peer)
     motion = (args.motion or cfg.base_motion.kind, args.amplitude, args.frequency)
     run_info = {

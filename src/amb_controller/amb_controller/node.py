@@ -117,6 +117,7 @@ class ControllerNode(RigNode):
         self.codec = m.joint_state_codec(self.channels, ("effort",), self.token or "")
         self.decoder = m.joint_state_decoder(self.channels, ("position",), self.token)
         self.sub = self.create_subscription(JointState, m.DISPLACEMENT, self.on_sample, qos, raw=True)
+        self.matches.watch(self.sub)  # a second publisher of samples is an intruder (amb_ros/matches.py)
         if p["safe_gains_on_unstable"]:
             self.listen_unstable()
         self.injection = InjectionHook(self)  # sensor-signal disturbance (ISO 14839-3), off by default

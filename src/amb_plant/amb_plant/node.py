@@ -141,6 +141,7 @@ class PlantNode(RigNode):
         self.clock_codec = m.clock_codec()
         self.cmd_decoder = m.joint_state_decoder(self.channels, ("effort",), self.token)
         self.cmd_sub = self.create_subscription(JointState, m.CURRENT, self.on_command, qos, raw=True)
+        self.matches.watch(self.cmd_sub)  # a second publisher of commands is an intruder (amb_ros/matches.py)
         self.handlers = [(self.cmd_sub, self.on_command)]
         if self.mode == "lockstep":  # every base sample, in blocks
             self.rates_decoder = StateBlockDecoder(m.BASE_RATE_NAMES, RATES_BLOCK)

@@ -54,6 +54,9 @@ class Waiter:
         if force or now >= self._next_serve:
             self._next_serve = now + SERVE_PERIOD_S
             self._executor.spin_once(timeout_sec=0.0)
+            matches = getattr(self.node, "matches", None)
+            if matches is not None:  # publishers matched by the input subscriptions (amb_ros/matches.py)
+                matches.poll()
 
     def close(self) -> None:
         self._executor.remove_node(self.node)

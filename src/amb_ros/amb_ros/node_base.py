@@ -12,6 +12,7 @@ from rclpy.node import Node
 from amb_dynamics.errors import InputError
 
 from .diagnostics import Counters, Diagnostics
+from .matches import PublisherMatches
 from .messages import RUN_TOKEN_RE
 from .params import NodeParams, ParamSpec
 from .scheduling import set_realtime_priority
@@ -82,6 +83,7 @@ class RigNode(Node):
         self.Ts_ns = sample_period_ns(self.p["rate_hz"])
         self.Ts = self.Ts_ns / 1e9
         self.counters = Counters()
+        self.matches = PublisherMatches(self)  # publishers matched by the input subscriptions (matches.py)
         self.diag = Diagnostics(self, self.p["diagnostics_period_s"], self.p["min_diagnostics_readers"])
         self.scheduling = "normal"
         if self.p["rt_priority"] > 0:
@@ -94,4 +96,5 @@ class RigNode(Node):
             "rate (Hz)": f"{1e9 / self.Ts_ns:.6g}",
             "sample period (ns)": str(self.Ts_ns),
             **self.counters.values(),
+            **self.matches.values(),
         }

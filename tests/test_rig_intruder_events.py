@@ -1,0 +1,72 @@
+"""An intruder on /amb/current that the plant matched only briefly is still found: the plant counts the publishers
+its command subscription has matched from DDS match status (amb_ros/matches.py: the count is cumulative, so it
+does not depend on anyone looking at the graph while the intruder exists), and amb-rig fails the run naming the
+topic.  Before, the graph watch (a 0.25 s poll) missed a publisher that lived under a second in 2 of 4 runs.
+
+The intruder publishes one command (without the run token: the plant rejects it as foreign), waits until every
+matched reader has acknowledged it, which proves that the plant matched it, and leaves at once.
+"""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from helpers import DdsRecorder, rig_json
+from procs import spawn
+
+pytestmark = pytest.mark.ros
+
+
+def brief_intruder(node, topic: str) -> tuple[int, bool, float]:
+    """On ``node`` (one that has discovered the rig), a publisher of ``topic`` that sends one command, waits until
+    every matched reader has acknowledged it, and leaves: (readers matched, acknowledged, seconds it existed
+    after its first match)."""
+    from rclpy.duration import Duration
+    from sensor_msgs.msg import JointState
+
+    from amb_ros.qos import lockstep_qos
+
+    pub = node.create_publisher(JointState, topic, lockstep_qos())
+    deadline = time.monotonic() + 30.0
+    while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+        time.sleep(0.002)
+    matched, t0 = pub.get_subscription_count(), time.monotonic()
+    pub.publish(JointState(name=["amb1_y", "amb1_z", "amb5_y", "amb5_z"], effort=[12.0] * 4))
+    acked = pub.wait_for_all_acked(Duration(seconds=10.0))
+    node.destroy_publisher(pub)
+    return matched, acked, time.monotonic() - t0
+
+
+def test_a_briefly_matched_publisher_is_counted_and_fails_the_run(tmp_path, venv_bin, seed_config_path):
+    from sensor_msgs.msg import JointState
+
+    rig = [str(venv_bin / "amb-rig"), "run", "--duration", "30", "--no-monitor", "--json", "--log-dir",
+           str(tmp_path / "logs"), "--config", str(seed_config_path)]  # fmt: skip
+    # this process's node sees the loop running first (a participant that joins a running rig late was not
+    # discovered within 60 s in about half of the trials here); the intruder's publisher then needs no new
+    # participant, only the match of one more endpoint
+    rec = DdsRecorder({"/amb/displacement": JointState})
+    try:
+        with spawn(rig, tmp_path / "rig.log") as proc:
+            end = time.monotonic() + 90
+            while len(rec.messages["/amb/displacement"]) < 500 and time.monotonic() < end:
+                time.sleep(0.05)
+            assert len(rec.messages["/amb/displacement"]) >= 500, proc.text()
+            matched, acked, lived = brief_intruder(rec.node, "/amb/current")
+            code = proc.wait(120)
+            text = proc.text()
+    finally:
+        rec.close()
+    assert matched >= 1 and acked
+    print(f"\nthe intruder existed {1e3 * lived:.0f} ms after its first match")
+    s = rig_json(text)
+    assert code == 1, text[-3000:]
+    plant = s["nodes"]["plant"]["values"]
+    assert plant["publishers matched /amb/current"] == "2" and plant["foreign publishers /amb/current"] == "1", plant
+    assert plant["foreign /amb/current"] == "1"  # its command: rejected (no run token), not applied
+    assert plant.get("foreign commands applied", "0") == "0"
+    errors = " ".join(s["errors"])
+    assert "/amb/current by" in errors and "joined this run" in errors, s["errors"]
+    assert int(plant["steps"]) < 30 * s["rate_hz"]  # the run was stopped, not finished
