@@ -1,14 +1,18 @@
 """Charts on the paper model (config/seed_paper.yaml): the 100x100 digital-loop pitch chart (default 5 kHz loop) on
 a local Dask cluster, its per-point speed against the straightforward product of one-expm step maps, the 1 -> 2
-local workers speed-up, and the continuous 100x100 chart.  Ratios are measured side by side in this run.
+local workers speed-up (with its control: the same rows in one plain process against two side by side, the
+ceiling this machine gives two workers when each builds its own model), and the continuous 100x100 chart.  Ratios
+are measured side by side in this run.
 
     .venv/bin/python benchmarks/run_all.py bench_charts
 """
 
 from __future__ import annotations
 
+import multiprocessing as mp
 import os
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +40,32 @@ def _chart(spec, omegas, amps, workers):
     parts = runner.run()
     total = time.perf_counter() - t0
     return np.concatenate([p["rho"] for p in parts]), total, runner.compute_seconds or total
+
+
+def _rows(spec, omegas, amps) -> float:
+    """Seconds for ``chart_chunk`` on these rows in a fresh process (its own model build included, as a worker's)."""
+    t0 = time.perf_counter()
+    chart_chunk(spec, omegas, amps)
+    return time.perf_counter() - t0
+
+
+def side_by_side(spec, omegas, amps) -> tuple[float, float]:
+    """The machine's own ceiling for 1 -> 2 workers, without Dask: (seconds for all rows in one fresh process,
+    seconds until two fresh processes side by side have done half each)."""
+    ctx = mp.get_context("spawn")  # fresh processes: no model memoised from this one
+    with ProcessPoolExecutor(1, mp_context=ctx) as pool:
+        pool.submit(time.sleep, 0).result()  # started and imported before the clock runs
+        one = pool.submit(_rows, spec, omegas, amps).result()
+    half = omegas.size // 2
+    with ProcessPoolExecutor(2, mp_context=ctx) as pool:
+        for f in [pool.submit(time.sleep, 0.2) for _ in range(2)]:
+            f.result()
+        t0 = time.perf_counter()
+        futures = [pool.submit(_rows, spec, omegas[:half], amps), pool.submit(_rows, spec, omegas[half:], amps)]
+        for f in futures:
+            f.result()
+        two = time.perf_counter() - t0
+    return one, two
 
 
 def per_point(cfg, model, loop) -> tuple[float, float, float]:
@@ -70,6 +100,7 @@ def main() -> dict:
     spec = ChartSpec(cfg, "pitch", "sampled", None)
     c1 = _chart(spec, sub_w, sub_a, 1)[2]  # serial, in this process (no Dask overhead: the harder baseline)
     _, tot2, c2 = _chart(spec, sub_w, sub_a, 2)
+    one, two = side_by_side(spec, sub_w, sub_a)
 
     rho, t_digital, t_digital_compute = _chart(spec, OMEGAS, AMPS, workers)
     cont = ChartSpec(cfg, "pitch", "continuous", None)
@@ -87,6 +118,9 @@ def main() -> dict:
         "workers_2_s": c2,
         "workers_2_total_with_startup_s": tot2,
         "speedup_1_to_2_workers": c1 / c2,
+        "side_by_side_1_s": one,
+        "side_by_side_2_s": two,
+        "speedup_1_to_2_processes_without_dask": one / two,
         "continuous_chart_100x100_s": t_cont,
     }
     print("charts, config/seed_paper.yaml (5 kHz digital loop, 5000 rad/s modal model)")
@@ -96,6 +130,8 @@ def main() -> dict:
           f"{res['digital_per_point_speedup']:.0f}x (|rho difference| {diff:.1e})")  # fmt: skip
     print(f"  16x20 digital chart: serial {c1:.2f} s, 2 local workers {c2:.2f} s compute ({tot2:.2f} s with "
           f"start-up): {res['speedup_1_to_2_workers']:.2f}x (goal >= 1.8x)")  # fmt: skip
+    print(f"  the same rows in plain processes, no Dask: one {one:.2f} s, two side by side {two:.2f} s: "
+          f"{one / two:.2f}x (the machine's own ceiling for 2 workers)")  # fmt: skip
     print(f"  continuous pitch chart 100x100 (serial)     {t_cont:8.2f} s (goal < 5 s)")
     record(f"digital-loop pitch chart 100 x 100, paper config, {workers} local Dask workers", t_digital, "s",
            goal="< 60 s", note=f"compute {t_digital_compute:.1f} s")  # fmt: skip
@@ -103,6 +139,7 @@ def main() -> dict:
     record("  max |rho difference| at those points", diff, "")
     record_ratio("16 x 20 digital chart, 1 -> 2 local workers (compute)", [c1], [c2], goal=">= 1.8x",
                  note=f"{tot2:.2f} s with the cluster's start-up")  # fmt: skip
+    record_ratio("  control: the same rows in plain processes, one vs two side by side (no Dask)", [one], [two])
     record("continuous pitch chart 100 x 100 through the chunk runner, full FE model, serial", t_cont, "s",
            goal="< 5 s")  # fmt: skip
     return res
