@@ -30,6 +30,7 @@ from .errors import InputError
 
 BLAS_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 CONNECT_TIMEOUT_S = 5.0
+PRELOAD = "amb_dynamics.chart_jobs"  # numpy, scipy and the chart kernels: a worker imports them as it starts
 
 
 class Interrupted(Exception):
@@ -216,6 +217,7 @@ class ChunkRunner:
                         dashboard_address=None,
                         env=dict(BLAS_ENV),
                         silence_logs=40,
+                        preload=[PRELOAD],  # imported as each worker starts (cluster start-up, not compute)
                     )
                 client = Client(cluster, set_as_default=False)
         except OSError as exc:
