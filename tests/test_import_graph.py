@@ -107,3 +107,17 @@ def test_amb_dynamics_has_no_import_cycle():
     assert len(graph) >= 25 and f"{PACKAGE}.estimator.fit" in graph  # the walk saw the whole package
     assert f"{PACKAGE}.estimator.refine" in graph[f"{PACKAGE}.estimator.fit"]
     assert cycles(graph) == []
+
+
+def test_nodes_do_not_import_scipy_signal_at_start():
+    """scipy.signal takes ~1.4 s to import here (more than the rest of a node's imports together), and every node
+    and amb-rig start by importing amb_dynamics' controller code: the few functions that need scipy.signal import
+    it when called."""
+    import subprocess
+    import sys
+
+    for module in ("amb_plant.node", "amb_controller.node", "base_motion.node", "stability_monitor.node",
+                   "amb_bringup.rig"):  # fmt: skip
+        code = f"import sys, {module}; print('scipy.signal' in sys.modules)"
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+        assert out.returncode == 0 and out.stdout.strip() == "False", (module, out.stdout, out.stderr[-1000:])

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg as sla
-from scipy.signal import tf2ss
 
 from .amb import DiscretePIDCoefficients, pid_update_matrices
 from .config import RotorConfig
@@ -57,6 +56,8 @@ def filter_state_space(f: FilterConfig) -> tuple[StateSpace, float]:
         wz, wp = 2 * np.pi * f.zero_hz, 2 * np.pi * f.pole_hz
         w0 = float(np.sqrt(wz * wp))
         num, den = [wp / wz, wp], [1.0, wp]
+    from scipy.signal import tf2ss  # here: scipy.signal takes ~1.4 s to import, and every node imports this module
+
     A, B, C, D = tf2ss(num, den)
     return StateSpace(A, B, C, D), w0
 

@@ -11,7 +11,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
-from scipy.signal import cont2discrete
 
 from .errors import InputError
 
@@ -134,6 +133,8 @@ def tustin(ss: StateSpace, Ts: float, prewarp_w: float | None = None) -> StateSp
     dt = Ts if prewarp_w is None else 2.0 * np.tan(prewarp_w * Ts / 2.0) / prewarp_w
     if ss.n_states == 0:
         return StateSpace(ss.A, ss.B, ss.C, ss.D, Ts)
+    from scipy.signal import cont2discrete  # here: scipy.signal takes ~1.4 s to import (see control_law)
+
     A, B, C, D, _ = cont2discrete((ss.A, ss.B, ss.C, ss.D), dt, method="bilinear")
     return StateSpace(A, B, C, D, Ts)
 
