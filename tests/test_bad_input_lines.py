@@ -197,6 +197,7 @@ CASES = [
     ),
     ("rig-param-bad-yaml", _rig, lambda t: ["run", "--param", "controller:proportional_gain=["], ["--param"]),
     ("rig-duration-nan", _rig, lambda t: ["run", "--duration", "nan"], ["--duration"]),
+    ("rig-lock-wait-negative", _rig, lambda t: ["run", "--lock-wait", "-1"], ["--lock-wait", ">= 0"]),
     ("rig-bag-exists", _rig, lambda t: ["run", "--bag", str(t)], ["--bag", "already exists"]),
 ]
 

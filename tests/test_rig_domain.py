@@ -15,7 +15,6 @@ from pathlib import Path
 import pytest
 
 from amb_bringup.domain import WATCH_PERIOD_S, Watch, describe, topics_of
-from amb_bringup.rig import LOCK_WAIT_S
 from amb_ros import messages as m
 from helpers import rig_json
 from procs import spawn
@@ -26,17 +25,18 @@ PAPER = ["--config", str(Path(__file__).resolve().parents[1] / "config" / "seed_
 
 def test_second_rig_on_the_same_domain_is_refused_and_the_first_is_untouched(tmp_path, venv_bin):
     rig = str(venv_bin / "amb-rig")
-    # long enough to outlast the second one's wait for the domain (LOCK_WAIT_S): about 20 s of wall time on the
-    # paper's plant (the real rig's full FE plant steps ~6x slower: the lock is the point here, not the physics)
-    first = [rig, "run", "--duration", "8", "--no-monitor", "--json", "--log-dir", str(tmp_path / "first"), *PAPER]
+    # long enough to outlast the second one's start and its wait for the domain (--lock-wait 2 s): about 10 s of
+    # wall time on the paper's plant (the lock is the point here, not the physics)
+    first = [rig, "run", "--duration", "4", "--no-monitor", "--json", "--log-dir", str(tmp_path / "first"), *PAPER]
     with spawn(first, tmp_path / "first.log") as proc:
         assert proc.wait_for("started plant", 60), proc.text()
-        with spawn([rig, "run", "--duration", "1", "--no-monitor"], tmp_path / "second.log") as second:
+        second_cmd = [rig, "run", "--duration", "1", "--no-monitor", "--lock-wait", "2"]
+        with spawn(second_cmd, tmp_path / "second.log") as second:
             code = second.wait(60)
             text = second.text()
         assert code == 1, text
         assert proc.popen.poll() is None, proc.text()
-        assert f"waiting up to {LOCK_WAIT_S:g} s for the domain's other run" in text
+        assert "waiting up to 2 s for the domain's other run" in text
         assert f"ROS_DOMAIN_ID={os.environ['ROS_DOMAIN_ID']} is used by another amb-rig run" in text
         assert re.search(rf"amb-rig pid {proc.popen.pid}\b", text), text
         assert "started" not in text and "Traceback" not in text  # refused before any node was spawned
@@ -44,7 +44,7 @@ def test_second_rig_on_the_same_domain_is_refused_and_the_first_is_untouched(tmp
         s = rig_json(proc.text())
     assert s["ok"]
     plant = s["nodes"]["plant"]["values"]
-    assert int(plant["steps"]) == 8 * s["rate_hz"]  # every step of the first run, none from the refused one
+    assert int(plant["steps"]) == 4 * s["rate_hz"]  # every step of the first run, none from the refused one
     assert plant["rejected total"] == "0"
 
 

@@ -89,6 +89,9 @@ def parser() -> argparse.ArgumentParser:
     add_verdict_arguments(r)
     r.add_argument("--start-timeout", type=float, default=60.0, help="bound on start-up and connection (s)")
     r.add_argument("--timeout", type=float, help="bound on the whole run (wall s; default from the duration)")
+    r.add_argument("--lock-wait", type=float, default=LOCK_WAIT_S, metavar="S",
+                   help=f"wait up to S s for another run on this ROS_DOMAIN_ID to end before giving up (default "
+                   f"{LOCK_WAIT_S:g}; 0: at once)")  # fmt: skip
     paramfile.add_arguments(r)
     r.add_argument("--live", action="store_true", help="serve the run to Foxglove (amb-live; docs/live-view.md)")
     live.add_arguments(r, prefix="live-")
@@ -101,8 +104,13 @@ def parser() -> argparse.ArgumentParser:
     return ap
 
 
-def _say_waiting(holder: str) -> None:
-    print(f"amb-rig: waiting up to {LOCK_WAIT_S:g} s for the domain's other run ({holder}) to end", file=sys.stderr)
+def _waiting_note(wait_s: float):
+    """The one line printed when a run waits for the domain's other run."""
+
+    def say(holder: str) -> None:
+        print(f"amb-rig: waiting up to {wait_s:g} s for the domain's other run ({holder}) to end", file=sys.stderr)
+
+    return say
 
 
 class Interrupted:
@@ -159,7 +167,8 @@ def main(argv: list[str] | None = None) -> None:
             "starves them: they would lose samples)"
         )
     try:
-        lock = split.hold_locks(hold_run_lock, os.environ["ROS_DOMAIN_ID"], args, LOCK_WAIT_S, _say_waiting)
+        lock = split.hold_locks(hold_run_lock, os.environ["ROS_DOMAIN_ID"], args, args.lock_wait,
+                                _waiting_note(args.lock_wait))  # fmt: skip
     except (AmbError, DdsEnvError) as exc:  # the domain is in use: not bad input, a run that could not happen
         raise SystemExit(f"amb-rig: {exc}") from None
     clean_stale_shm()  # a killed run's Fast DDS segments (nobody holds their locks); a live run's stay

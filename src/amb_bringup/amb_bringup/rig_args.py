@@ -72,6 +72,7 @@ def check_rig_args(args) -> None:
     _number("--initial-displacement", args.initial_displacement, -1.0, 1.0)
     _number("--start-timeout", args.start_timeout, 0.0, 3600.0, allow_lo=False)
     _number("--timeout", args.timeout, 0.0, 1e7, allow_lo=False)
+    _number("--lock-wait", args.lock_wait, 0.0, 3600.0)
     if args.rt_priority is not None and not 0 <= args.rt_priority <= 99:
         raise RigArgError(f"--rt-priority must be in 0..99 (got {args.rt_priority})")
     if args.bag:

@@ -97,12 +97,12 @@ def run_args(args, bag: Path, log_dir: Path):
 def main_sensitivity(args) -> int:
     from amb_ros.env import DdsEnvError, ensure_localhost_dds, hold_run_lock
 
-    from .rig import LOCK_WAIT_S, _say_waiting, run
+    from .rig import LOCK_WAIT_S, _waiting_note, run
 
     try:
         ensure_localhost_dds()
         cfg, model, j, band = check(args)
-        lock = hold_run_lock(os.environ["ROS_DOMAIN_ID"], LOCK_WAIT_S, _say_waiting)
+        lock = hold_run_lock(os.environ["ROS_DOMAIN_ID"], LOCK_WAIT_S, _waiting_note(LOCK_WAIT_S))
     except (AmbError, DdsEnvError) as exc:
         print(f"amb-rig sensitivity: {exc}", file=sys.stderr)
         return EXIT_USAGE
