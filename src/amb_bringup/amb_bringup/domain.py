@@ -70,7 +70,7 @@ class Watch:
 
     Two sources: this process's graph, polled every WATCH_PERIOD_S (every topic of the run), and the plant's and
     the controller's own counts of the publishers their input subscriptions matched (``amb_ros.matches``: from
-    DDS match events, so a publisher that lived between two polls is found too), read from their /diagnostics."""
+    DDS match status, so a publisher that lived between two polls is found too), read from their /diagnostics."""
 
     LOOP_NODES = ("amb_plant", "amb_controller")
 
@@ -90,7 +90,8 @@ class Watch:
 
     def final(self) -> list[str]:
         """After the run: the nodes' final counts (an intruder of the last moments), unless already reported."""
-        return [] if self.reported else [msg for msg in (self._report(self.matched()),) if msg]
+        msg = None if self.reported else self._report(self.matched())
+        return [msg] if msg else []
 
     def matched(self) -> dict[str, list[str]]:
         """``{topic: [publisher seen, ...]}`` of the foreign publishers that the loop's nodes have matched."""
