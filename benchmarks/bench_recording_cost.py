@@ -7,7 +7,8 @@ Cost = median over the back-to-back pairs of 1 - with / without (robust to load 
 < 20 %.  Two controls in the same pairs:
 
 - beside a bare raw reader of the rig's topics that takes every message and writes nothing (scheduled and batched
-  like the recorder: SCHED_IDLE, 50 ms): the cost of one more DDS reader alone, which no recorder can go below;
+  like amb-rig's lockstep recorder: normal priority, 50 ms): the cost of one more DDS reader alone, which no
+  recorder can go below;
 - beside a busy loop that takes BURN_DUTY of one core and no DDS at all, to compare with the recorder's own CPU
   share (its CPU time while recording / the loop's wall time, from its final diagnostics): on this 2-core machine
   any process of that size costs the loop about as much.
@@ -58,8 +59,9 @@ def bare_reader() -> None:
     from sensor_msgs.msg import Imu, JointState
     from trajectory_msgs.msg import JointTrajectory
 
+    from amb_bringup.processes import consumer_priority as rig_priority
     from amb_ros.qos import lockstep_qos
-    from amb_ros.scheduling import idle_priority
+    from amb_ros.scheduling import consumer_priority
 
     types = {
         "/clock": Clock,
@@ -72,7 +74,7 @@ def bare_reader() -> None:
     node = rclpy.create_node("bench_bare_reader")
     subs = [node.create_subscription(types.get(t, JointState), t, lambda _: None, lockstep_qos(), raw=True)
             for t in RIG_TOPICS]  # fmt: skip
-    idle_priority()
+    consumer_priority(rig_priority("lockstep"))
     stop = []
     signal.signal(signal.SIGINT, lambda *_: stop.append(1))
     taken = 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from amb_bringup.processes import node_parameters
+from amb_bringup.processes import bag_process, node_parameters
 from amb_bringup.rig import parser
 
 
@@ -32,6 +32,26 @@ def test_reader_gates_count_the_readers_that_come(argv, rates, imu, acc, state, 
     assert g["base_motion.min_acceleration_subscribers"] == acc
     assert g["plant.min_state_subscribers"] == state
     assert g["plant.min_subscribers"] == disp
+
+
+@pytest.mark.parametrize(("argv", "readers"), [((), 1), (("--bag", "b"), 2), (("--live",), 2),
+                                               (("--bag", "b", "--live"), 3)])  # fmt: skip
+def test_final_reports_wait_for_every_diagnostics_reader(argv, readers):
+    """The collector, the recorder and the live view each read /diagnostics: a final report sent when only the
+    recorder had matched never reached the collector (a short run then ended with 'published no diagnostics')."""
+    _, per = node_parameters(parser().parse_args(["run", *argv]))
+    assert {p["min_diagnostics_readers"] for p in per.values()} == {readers}
+
+
+@pytest.mark.parametrize(("mode", "priority"), [("lockstep", "normal"), ("realtime", "idle")])
+def test_consumers_are_starved_only_beside_a_realtime_loop(tmp_path, mode, priority):
+    args = parser().parse_args(["run", "--mode", mode, "--bag", str(tmp_path / "b")])
+    _, per = node_parameters(args)
+    assert per["monitor"]["priority"] == priority
+    cmd = bag_process(args, tmp_path).cmd
+    assert cmd[cmd.index("--priority") + 1] == priority
+    _, per = node_parameters(parser().parse_args(["run", "--param", "monitor:priority=low"]))
+    assert per["monitor"]["priority"] == "low"  # an explicit --param wins
 
 
 @pytest.mark.ros

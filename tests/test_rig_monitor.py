@@ -1,7 +1,6 @@
 """`amb-rig run` starts the stability monitor itself and reports its verdict in the summary (issue 6, item 5)."""
 
 import json
-import re
 import subprocess
 from pathlib import Path
 
@@ -36,5 +35,5 @@ def test_unstable_verdict_in_the_summary(venv_bin, tmp_path):
     assert st["flag_raised_at_s"] <= 8 * T  # the documented detection latency
     assert st["rho"] == pytest.approx(model_rho(0.6, T), abs=1e-3)  # the sampled-data model multiplier
     assert s["nodes"]["monitor"]["exit_code"] == 0
-    # beside the loop the monitor takes only CPU time the loop leaves (priority: idle, every thread)
-    assert re.fullmatch(r"SCHED_IDLE \(\d+ threads\)", s["nodes"]["monitor"]["values"]["scheduling"])
+    # lockstep has no deadline: amb-rig runs the monitor at normal priority, so that it is never starved
+    assert s["nodes"]["monitor"]["values"]["scheduling"] == "normal"

@@ -72,11 +72,14 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
     token = getattr(args, "run_token", None)
     if token:  # the loop's two topics carry it; a message without it is another run's (docs/topics.md)
         per["plant"]["run_token"] = per["controller"]["run_token"] = token
-    for name in NODES:  # amb-rig's collector must hear every final report (the plant's also gates its start)
-        per[name]["min_diagnostics_readers"] = 1
-    if args.rt_priority:  # the loop's nodes only: the monitor and the recorder run under SCHED_IDLE beside it
+    bag, live = int(bool(getattr(args, "bag", None))), int(bool(getattr(args, "live", False)))
+    for name in NODES:  # amb-rig's collector, the recorder and the live view must hear every final report: one
+        # matched reader is not enough when it is the recorder (seen: the collector heard no report of a short run)
+        per[name]["min_diagnostics_readers"] = 1 + bag + live  # the plant's also gates its start
+    if args.rt_priority:  # the loop's nodes only: the monitor and the recorder run beside it (consumer_priority)
         for name in ("base_motion", "controller", "plant"):
             per[name]["rt_priority"] = int(args.rt_priority)
+    per["monitor"]["priority"] = consumer_priority(args.mode)
     for item in args.param:
         node, _, rest = item.partition(":")
         key, sep, raw = rest.partition("=")
@@ -84,7 +87,7 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
             raise ValueError(f"--param {item!r}: expected NODE:NAME=VALUE with NODE one of {', '.join(per)}")
         per[node][key] = yaml.safe_load(raw)
     # every reader gets every sample from the first: the plant and base_motion wait for them before step 0
-    bag, monitor = int(bool(getattr(args, "bag", None))), int(not getattr(args, "no_monitor", True))
+    monitor = int(not getattr(args, "no_monitor", True))
     if monitor and args.no_plant:
         per["monitor"].setdefault("input", "displacement")  # a real rig measures the AMB displacements only
     sensor_only = monitor and per["monitor"].get("input") == "displacement"
@@ -126,6 +129,17 @@ def node_specs(args, run_dir: Path) -> list[ProcessSpec]:
     return specs
 
 
+def consumer_priority(mode: str) -> str:
+    """Scheduling of the recorder and the monitor beside the loop (``--priority`` / ``priority``).
+
+    Realtime: ``idle`` (SCHED_IDLE), so that they never delay a deadline.  Lockstep: ``normal``.  Lockstep has
+    no deadline, and a consumer that falls more than the publishers' history (1000 samples) behind loses
+    samples; then the bag or the verdict is incomplete.  Seen under SCHED_IDLE on a loaded 2-core machine: the
+    recorder of a lockstep run lost 4,375 samples.
+    """
+    return "normal" if mode == "lockstep" else "idle"
+
+
 def bag_process(args, run_dir: Path) -> ProcessSpec | None:
     """``amb-bag record -o DIR`` when --bag is given and amb-bag is installed."""
     if not getattr(args, "bag", None):
@@ -135,7 +149,11 @@ def bag_process(args, run_dir: Path) -> ProcessSpec | None:
     if exe is None:
         raise FileNotFoundError("--bag needs the amb-bag recorder, which is not installed")
     return ProcessSpec(
-        "recorder", [exe, "record", "-o", str(args.bag)], node="amb_bag_recorder", required=True, stop_tier=2
+        "recorder",
+        [exe, "record", "-o", str(args.bag), "--priority", consumer_priority(args.mode)],
+        node="amb_bag_recorder",
+        required=True,
+        stop_tier=2,
     )  # stopped last: it records everyone's final diagnostics
 
 

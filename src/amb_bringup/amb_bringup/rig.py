@@ -75,7 +75,7 @@ def parser() -> argparse.ArgumentParser:
         choices=range(100),
         metavar="N",
         help="SCHED_FIFO priority of base_motion, plant and controller (0 = normal scheduling; default 20 in "
-        "realtime, 0 in lockstep; lockstep only with --no-monitor and without --bag, whose SCHED_IDLE consumers would "
+        "realtime, 0 in lockstep; lockstep only with --no-monitor and without --bag, whose consumers would "
         "starve; without permission the nodes run normally and say so)",
     )
     r.add_argument("--json", action="store_true", help="print the summary as JSON")

@@ -46,6 +46,7 @@ class InjectionHook:
     def __init__(self, node):
         p = node.p
         self.active = p["injection_kind"] != "none"
+        self.pub = None
         if not self.active:
             return
         if p["injection_axis"] not in node.channels:

@@ -257,6 +257,7 @@ class ControllerNode(RigNode):
             run_sample_triggered(self)
         else:
             run_timer_triggered(self)
+        self.deliver_pending(self.pub, self.injection.pub)
         self.waiter.close()
         self.diag.publish_final(*self.status(), self.values())
         return 0

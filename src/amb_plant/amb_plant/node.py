@@ -30,7 +30,6 @@ import time
 
 import numpy as np
 from geometry_msgs.msg import Vector3Stamped
-from rclpy.duration import Duration
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import String
@@ -337,10 +336,7 @@ class PlantNode(RigNode):
         self.publish_state(self.state_block.flush())  # the samples of the last, shorter block
         self.publish_aux(self.aux_block.flush())
         self.publish_contacts()
-        # slow readers (recorder) get the last samples
-        for pub in (self.disp_pub, self.state_pub, self.clock_pub, self.aux_pub, self.contact_pub):
-            if pub is not None:
-                pub.wait_for_all_acked(Duration(seconds=2.0))
+        self.deliver_pending(self.disp_pub, self.state_pub, self.clock_pub, self.aux_pub, self.contact_pub)
         self.waiter.close()
         level, message = self.status()
         self.diag.publish_final(level, message, self.values())

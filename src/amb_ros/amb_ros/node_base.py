@@ -7,6 +7,9 @@ base motion and the offline simulation all agree on t_k bit for bit.
 
 from __future__ import annotations
 
+import time
+
+from rclpy.duration import Duration
 from rclpy.node import Node
 
 from amb_dynamics.errors import InputError
@@ -18,6 +21,7 @@ from .params import NodeParams, ParamSpec
 from .scheduling import set_realtime_priority
 
 MODES = ("lockstep", "realtime")
+ACK_TIMEOUT_S = 5.0  # longest wait at exit for slow readers to acknowledge the last samples
 
 
 def sample_period_ns(rate_hz: float) -> int:
@@ -88,6 +92,15 @@ class RigNode(Node):
         self.scheduling = "normal"
         if self.p["rt_priority"] > 0:
             self.scheduling = set_realtime_priority(self.p["rt_priority"])
+
+    def deliver_pending(self, *pubs, timeout_s: float = ACK_TIMEOUT_S) -> None:
+        """Before the node exits: wait (``timeout_s`` in all) until every reliable reader has acknowledged the
+        last samples of ``pubs`` (None entries skipped).  A slow reader (recorder, monitor) still takes samples
+        after the loop ends; when the process exits, its writer's history goes with it and they are lost."""
+        deadline = time.monotonic() + timeout_s
+        for pub in pubs:
+            if pub is not None:
+                pub.wait_for_all_acked(Duration(seconds=max(0.01, deadline - time.monotonic())))
 
     def common_values(self) -> dict[str, str]:
         return {

@@ -188,6 +188,7 @@ class BaseMotionNode(RigNode):
             self.skipped = ticker.skipped
         if self.rates is not None:
             self.publish_rates(self.rates.flush())  # the samples of the last, shorter block
+        self.deliver_pending(self.imu_pub, self.acc_pub, self.rates_pub)
         self.waiter.close()
         level, message = self.status()
         self.diag.publish_final(level, message, self.values())
