@@ -64,13 +64,13 @@ def rig_argv(values: dict[str, str]) -> list[str]:
 def describe(values: dict[str, str], recorder_only: bool = False) -> list[LaunchNode]:
     """The processes amb-rig would start for launch argument ``values``; raises AmbError/SystemExit on bad input."""
     from .paramfile import prepare, started_nodes
-    from .processes import NODES
+    from .processes import NODES, recorder_arguments
     from .rig import parser
 
     args = parser().parse_args(rig_argv(values))
-    bag = [LaunchNode("amb_bag", "record", None, arguments=["-o", args.bag])] if args.bag else []
-    if recorder_only:
-        return bag
+    if recorder_only:  # beside someone else's loop: the recorder's own default scheduling
+        return [LaunchNode("amb_bag", "record", None, arguments=["-o", args.bag])] if args.bag else []
+    bag = [LaunchNode("amb_bag", "record", None, arguments=recorder_arguments(args))] if args.bag else []
     if args.rt_priority is None:  # as amb-rig's main()
         args.rt_priority = 20 if args.mode == "realtime" else 0
     common, per = prepare(args)

@@ -140,6 +140,11 @@ def consumer_priority(mode: str) -> str:
     return "normal" if mode == "lockstep" else "idle"
 
 
+def recorder_arguments(args) -> list[str]:
+    """``amb-bag record`` arguments of a run's recorder (amb-rig and rig.launch.py)."""
+    return ["-o", str(args.bag), "--priority", consumer_priority(args.mode)]
+
+
 def bag_process(args, run_dir: Path) -> ProcessSpec | None:
     """``amb-bag record -o DIR`` when --bag is given and amb-bag is installed."""
     if not getattr(args, "bag", None):
