@@ -31,11 +31,11 @@ def pencil_eigenvalues(speed_rpm: float) -> np.ndarray:
     fe = assemble(cfg)
     b, c = cfg.bearings, cfg.controller
     Ba = selection_matrix(fe.n, b.nodes)
-    K = fe.mats["K_B"] + (b.current_stiffness * c.proportional_gain + b.displacement_stiffness) * Ba @ Ba.T
-    D = b.current_stiffness * c.derivative_gain * Ba @ Ba.T + speed_rpm * np.pi / 30 * fe.mats["G"]
+    K = fe.matrices.shaft_stiffness + (b.current_stiffness * c.proportional_gain + b.displacement_stiffness) * Ba @ Ba.T
+    D = b.current_stiffness * c.derivative_gain * Ba @ Ba.T + speed_rpm * np.pi / 30 * fe.matrices.gyroscopic
     n, eye, zero = fe.n, np.eye(fe.n), np.zeros((fe.n, fe.n))
     A = np.block([[zero, eye], [-K, -D]])
-    B = np.block([[eye, zero], [zero, fe.mats["M"]]])
+    B = np.block([[eye, zero], [zero, fe.matrices.mass]])
     lam = sla.eig(A, B, right=False)
     assert lam.size == 2 * n
     return lam

@@ -19,7 +19,9 @@ from amb_dynamics.system import closed_loop
 def reference_eigs(model, kp, kI, kd, wf):
     n, Ba, g = model.n, model.Ba, model.gains
     Minv = sla.inv(model.M)
-    Ap = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ (model.mats["K_B"] + g.ks * Ba @ Ba.T), np.zeros((n, n))]])
+    Ap = np.block(
+        [[np.zeros((n, n)), np.eye(n)], [-Minv @ (model.matrices.shaft_stiffness + g.ks * Ba @ Ba.T), np.zeros((n, n))]]
+    )
     Bp = np.vstack([np.zeros((n, 4)), Minv @ Ba * g.ki])
     Cp = np.hstack([Ba.T, np.zeros((4, n))])
     # C(s) as one rational function: (kp s (1+s/wf) + kI (1+s/wf) + kd s^2) / (s (1+s/wf))

@@ -67,8 +67,8 @@ def test_real_rig_feedforward_is_the_statics():
 def free_free_modes(fe, D):
     """Damping ratios of the free-free shaft from the quadratic eigenproblem (pencil form, no M^-1)."""
     eye, zero = np.eye(fe.n), np.zeros((fe.n, fe.n))
-    A = np.block([[zero, eye], [-fe.mats["K_B"], -D]])
-    B = np.block([[eye, zero], [zero, fe.mats["M"]]])
+    A = np.block([[zero, eye], [-fe.matrices.shaft_stiffness, -D]])
+    B = np.block([[eye, zero], [zero, fe.matrices.mass]])
     lam = sla.eig(A, B, right=False)
     lam = lam[(lam.imag > 1.0)]  # flexural modes (rigid-body roots at 0)
     order = np.argsort(lam.imag)
@@ -85,7 +85,7 @@ def free_free_modes(fe, D):
 def test_structural_damping_ratios(setting, zeta):
     cfg = load_config(paper_config_path(), [setting, "modal_cutoff=null"])
     model = build_structure(cfg)
-    w, z = free_free_modes(model.fe, model.mats["D_s"])
+    w, z = free_free_modes(model.fe, model.matrices.structural_damping)
     assert len(w) == model.fe.n - 4  # 4 rigid-body modes: translation and tilt in two planes
     np.testing.assert_allclose(z, zeta(w), rtol=1e-6)
 
@@ -93,9 +93,11 @@ def test_structural_damping_ratios(setting, zeta):
 def test_paper_config_has_no_structural_damping():
     cfg = load_config(paper_config_path(), ["modal_cutoff=null"])
     model = build_structure(cfg)
-    assert not model.mats["D_s"].any()
+    assert not model.matrices.structural_damping.any()
     damped = build_structure(load_config(paper_config_path(), ["modal_cutoff=null", "structural_damping.model=rayleigh",
                                                                "structural_damping.beta=1e-5"]))  # fmt: skip
     a0, a1 = closed_loop(model, cfg).A0, closed_loop(damped, cfg).A0
     n = model.n
-    np.testing.assert_allclose(a0[n:, n:] - a1[n:, n:], np.linalg.solve(model.M, 1e-5 * model.mats["K_B"]), atol=1e-6)
+    np.testing.assert_allclose(
+        a0[n:, n:] - a1[n:, n:], np.linalg.solve(model.M, 1e-5 * model.matrices.shaft_stiffness), atol=1e-6
+    )

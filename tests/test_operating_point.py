@@ -57,7 +57,7 @@ def test_operating_point_balances_gravity(rig):
     from amb_dynamics.gravity import gravity_load_shapes
 
     f_g = gravity_load_shapes(model.fe)[:, 0] * -cfg.gravity.g
-    lhs = (model.mats["K_B"] + g.ks * Ba @ Ba.T) @ op.q
+    lhs = (model.matrices.shaft_stiffness + g.ks * Ba @ Ba.T) @ op.q
     assert np.abs(lhs - f_g - g.ki * Ba @ op.i).max() <= 1e-9 * np.abs(f_g).max()
     assert np.abs(op.y).max() < 1e-4 and np.abs(op.i).max() > 1.0  # micrometres of sag, amperes of current
 

@@ -233,8 +233,8 @@ def _roll_sweep(loop):
 def _seed_without_H():
     cfg = load(*SEED)
     model = structure.rigid_disk_model(P0["m"], P0["Id"], P0["Ip"], p0_stiffness(kc=1.0), 0.0, cfg=cfg)
-    mats = dict(model.mats, Hs=np.zeros((4, 4)))
-    return system.closed_loop(dataclasses.replace(model, mats=mats), cfg)
+    mats = dataclasses.replace(model.matrices, seed_spin_acceleration=np.zeros((4, 4)))
+    return system.closed_loop(dataclasses.replace(model, matrices=mats), cfg)
 
 
 def test_periodic_roll_neutral_T7():
@@ -279,12 +279,13 @@ def test_seed_disk_corrected_equals_derived_T8():
         c = system.coefficients_from_rates(Om, dOm, spin)
         c[i_dphi] = dspin + dOm[0]
         seed = structure.rigid_disk_model(m, Id, Ip, K_B, 0.2, cfg=cfg_s)
-        mats = dict(seed.mats)
-        assert mats["Kp11s"][2, 2] == Ip and mats["Kp22s"][3, 3] == Ip  # the seed's tilt entries
-        kp11, kp22 = mats["Kp11s"].copy(), mats["Kp22s"].copy()
+        mats = seed.matrices
+        assert mats.seed_centrifugal_z[2, 2] == Ip and mats.seed_centrifugal_y[3, 3] == Ip  # the seed's tilt entries
+        kp11, kp22 = mats.seed_centrifugal_z.copy(), mats.seed_centrifugal_y.copy()
         kp11[2, 2], kp22[3, 3] = Ip - Id, Ip - Id
-        mats.update(Gs=-mats["Gs"], Kp11s=kp11, Kp22s=kp22, Hs=np.zeros((4, 4)))
-        A_fixed = system.closed_loop(dataclasses.replace(seed, mats=mats), cfg_s).matrix(c)
+        mats = dataclasses.replace(mats, seed_gyroscopic=-mats.seed_gyroscopic, seed_centrifugal_z=kp11,
+                                   seed_centrifugal_y=kp22, seed_spin_acceleration=np.zeros((4, 4)))  # fmt: skip
+        A_fixed = system.closed_loop(dataclasses.replace(seed, matrices=mats), cfg_s).matrix(c)
         # + Omega_x Phi P_D in K: q'' gains -Omega_x Phi M^-1 P_D, M = diag(m, m, Id, Id), P_D = diag(0, 0, Ip, Ip)
         Phi = spin + Om[0]
         A_fixed[6, 2] -= Om[0] * Phi * Ip / Id

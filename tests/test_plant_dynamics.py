@@ -46,7 +46,10 @@ def open_plant(model, beta):
     Ap = np.block(
         [
             [np.zeros((n, n)), np.eye(n)],
-            [-Minv @ (model.mats["K_B"] + g.ks * Ba @ Ba.T), -Minv @ (beta * model.mats["K_B"])],
+            [
+                -Minv @ (model.matrices.shaft_stiffness + g.ks * Ba @ Ba.T),
+                -Minv @ (beta * model.matrices.shaft_stiffness),
+            ],
         ]
     )
     Bp = np.vstack([np.zeros((n, 4)), Minv @ Ba * g.ki])
@@ -96,7 +99,7 @@ def test_shaft_damping_ratio_per_mode(damping, zeta):
     n = model.n
     Ds = structural_damping(model, PlantDynamics(damping=damping))
     Minv = sla.inv(model.M)
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ model.mats["K_B"], -Minv @ Ds]])
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ model.matrices.shaft_stiffness, -Minv @ Ds]])
     lam = np.linalg.eigvals(A)
     lam = lam[lam.imag > 1.0]
     w = np.abs(lam)

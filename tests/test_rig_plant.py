@@ -108,9 +108,9 @@ def energy(model, cfg, x):
     T = np.zeros((model.fe.n, 2))
     T[0::4, 0] = 1.0
     Psi = model.basis if model.basis is not None else np.eye(model.fe.n)
-    fg = (Psi.T @ model.fe.mats["M"] @ T)[:, 0] * -cfg.gravity.g
+    fg = (Psi.T @ model.fe.matrices.mass @ T)[:, 0] * -cfg.gravity.g
     y = model.Ba.T @ q
-    E = 0.5 * v @ model.M @ v + 0.5 * q @ model.mats["K_B"] @ q + 0.5 * model.gains.ks * y @ y - fg @ q
+    E = 0.5 * v @ model.M @ v + 0.5 * q @ model.matrices.shaft_stiffness @ q + 0.5 * model.gains.ks * y @ y - fg @ q
     for j in (0, 2):
         d = math.hypot(y[j], y[j + 1]) - cfg.touchdown.clearance
         E += 0.5 * cfg.touchdown.stiffness * d * d if d > 0 else 0.0

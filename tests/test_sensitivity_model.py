@@ -26,8 +26,8 @@ def second_order_S(cfg, speed_rpm, f_hz):
 
     Derivation: Z_ol q = ki Ba u, u = -c (Ba^T q + E)  =>  Z_cl q = -ki c Ba E,  y_m = E + Ba^T q.
     """
-    mats = assemble(cfg).mats
-    M, K, G = mats["M"], mats["K_B"], mats["G"]
+    mats = assemble(cfg).matrices
+    M, K, G = mats.mass, mats.shaft_stiffness, mats.gyroscopic
     n = M.shape[0]
     Ba = np.zeros((n, 4))
     for j, (_, node, d) in enumerate(CHANNELS):

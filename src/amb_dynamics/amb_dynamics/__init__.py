@@ -22,6 +22,9 @@ _API = {
     "ConfigError": "errors",
     "InputError": "errors",
     # model
+    "ShaftElement": "fe",
+    "DiskElement": "fe",
+    "RotorMatrices": "rotor_matrices",
     "build_structure": "structure",
     "StructuralModel": "structure",
     "closed_loop": "system",

@@ -3,6 +3,7 @@
 Node DOFs are [v, w, theta_y, theta_z] with theta_y = -w', theta_z = +v'.  Element integrals use
 4-point Gauss-Legendre quadrature, exact for the cubic (Euler-Bernoulli or Timoshenko) shape functions.
 Every matrix is returned for both formulations: ``derived`` (default) and ``seed`` (the paper's print).
+``ShaftElement`` and ``DiskElement`` give an element's :class:`RotorMatrices`; ``assemble`` adds them up.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .config import DiskConfig, RotorConfig
+from .rotor_matrices import RotorMatrices
 
 J2 = np.array([[0.0, -1.0], [1.0, 0.0]])
 S2 = np.array([[0.0, 1.0], [1.0, 0.0]])
@@ -113,48 +115,77 @@ def _theta_rows(P: np.ndarray) -> np.ndarray:
     return pt
 
 
-def element_matrices(sec: Section) -> dict[str, np.ndarray]:
-    """All 8x8 element matrices (derived and seed), by Gauss-Legendre quadrature."""
-    Le = sec.length
-    phi_s = 0.0 if np.isinf(sec.kGA) else 12.0 * sec.EI / (sec.kGA * Le**2)
-    xg, wg = np.polynomial.legendre.leggauss(GAUSS_POINTS)
-    out: dict[str, np.ndarray] = {}
+class ShaftElement:
+    """A uniform beam element between two nodes (8 DOFs), Euler-Bernoulli or Timoshenko (as ROSS's ShaftElement).
 
-    def acc(name: str, value: np.ndarray) -> None:
-        out[name] = out.get(name, 0.0) + value
+    ``matrices``: its :class:`RotorMatrices` (8 x 8, no axial stiffening: the tension depends on where the element
+    sits); ``axial_stiffening(x0)`` and ``forcing(x0)`` for an element starting at axial position x0.
+    All integrals by Gauss-Legendre quadrature, exact for the cubic shape functions.
+    """
 
-    ra, i_d, i_p = sec.rho_A, sec.i_d, sec.i_p
-    for x, w in zip((xg + 1) / 2, wg * Le / 2, strict=True):
-        psi, dpsi, pt, dpt = shape_functions(x, Le, phi_s)
-        gamma = dpsi - J2.T @ pt
-        s = x * Le
-        acc("Mt", w * ra * psi.T @ psi)
-        acc("Mr", w * i_d * pt.T @ pt)
-        acc("K_B", w * sec.EI * dpt.T @ dpt)
-        if phi_s:
-            acc("K_B", w * sec.kGA * gamma.T @ gamma)
-        acc("G", -w * i_p * pt.T @ J2 @ pt)
-        acc("C", w * (ra * psi.T @ J2 @ psi + i_d * pt.T @ J2 @ pt))
-        acc("P", w * i_p * pt.T @ pt)
-        acc("Kp11", w * (ra * psi.T @ E11 @ psi + (i_p - i_d) * pt.T @ E11 @ pt))
-        acc("Kp22", w * (ra * psi.T @ E22 @ psi + (i_p - i_d) * pt.T @ E22 @ pt))
-        acc("Kp12", w * (ra * psi.T @ S2 @ psi + (i_p - i_d) * pt.T @ S2 @ pt))
-        acc("H1", w * i_p * pt.T @ UPPER @ pt)
-        # seed formulation: shaft rotary terms in slopes psi'
-        acc("Gs", w * i_p * dpsi.T @ J2 @ dpsi)
-        acc("Kp11s", w * (ra * psi.T @ E11 @ psi + i_p * dpsi.T @ E22 @ dpsi))
-        acc("Kp22s", w * (ra * psi.T @ E22 @ psi + i_p * dpsi.T @ E11 @ dpsi))
-        acc("Kp12s", w * (ra * psi.T @ S2 @ psi + (i_p - i_d) * dpsi.T @ S2 @ dpsi))
-        acc("Hs", w * i_p * dpsi.T @ LOWER @ dpsi)
-        # geometric stiffness shape integrals for n(x) = a0 + a2 x^2 (per unit Omega^2), local s
-        acc("KG_s0", w * dpsi.T @ dpsi)
-        acc("KG_s1", w * s * dpsi.T @ dpsi)
-        acc("KG_s2", w * s * s * dpsi.T @ dpsi)
-        # forcing shape vectors: columns (v, w, theta_y, theta_z) integrated with 1 and s
-        acc("F0", w * np.vstack([psi, pt]).T)
-        acc("F1", w * s * np.vstack([psi, pt]).T)
-    out["M"] = out["Mt"] + out["Mr"]
-    return out
+    def __init__(self, section: Section):
+        self.section = sec = section
+        Le = sec.length
+        phi_s = 0.0 if np.isinf(sec.kGA) else 12.0 * sec.EI / (sec.kGA * Le**2)
+        xg, wg = np.polynomial.legendre.leggauss(GAUSS_POINTS)
+        out: dict[str, np.ndarray] = {}
+
+        def acc(name: str, value: np.ndarray) -> None:
+            out[name] = out.get(name, 0.0) + value
+
+        ra, i_d, i_p = sec.rho_A, sec.i_d, sec.i_p
+        for x, w in zip((xg + 1) / 2, wg * Le / 2, strict=True):
+            psi, dpsi, pt, dpt = shape_functions(x, Le, phi_s)
+            gamma = dpsi - J2.T @ pt
+            s = x * Le
+            acc("translational_mass", w * ra * psi.T @ psi)
+            acc("rotary_mass", w * i_d * pt.T @ pt)
+            acc("shaft_stiffness", w * sec.EI * dpt.T @ dpt)
+            if phi_s:
+                acc("shaft_stiffness", w * sec.kGA * gamma.T @ gamma)
+            acc("gyroscopic", -w * i_p * pt.T @ J2 @ pt)
+            acc("coriolis", w * (ra * psi.T @ J2 @ psi + i_d * pt.T @ J2 @ pt))
+            acc("spin_roll", w * i_p * pt.T @ pt)
+            acc("centrifugal_z", w * (ra * psi.T @ E11 @ psi + (i_p - i_d) * pt.T @ E11 @ pt))
+            acc("centrifugal_y", w * (ra * psi.T @ E22 @ psi + (i_p - i_d) * pt.T @ E22 @ pt))
+            acc("centrifugal_yz", w * (ra * psi.T @ S2 @ psi + (i_p - i_d) * pt.T @ S2 @ pt))
+            acc("spin_acceleration", w * i_p * pt.T @ UPPER @ pt)
+            # seed formulation: shaft rotary terms in slopes psi'
+            acc("seed_gyroscopic", w * i_p * dpsi.T @ J2 @ dpsi)
+            acc("seed_centrifugal_z", w * (ra * psi.T @ E11 @ psi + i_p * dpsi.T @ E22 @ dpsi))
+            acc("seed_centrifugal_y", w * (ra * psi.T @ E22 @ psi + i_p * dpsi.T @ E11 @ dpsi))
+            acc("seed_centrifugal_yz", w * (ra * psi.T @ S2 @ psi + (i_p - i_d) * dpsi.T @ S2 @ dpsi))
+            acc("seed_spin_acceleration", w * i_p * dpsi.T @ LOWER @ dpsi)
+            # tension shape integrals for n(x) = a0 + a1 x + a2 x^2 (per unit Omega^2), local s
+            acc("tension_0", w * dpsi.T @ dpsi)
+            acc("tension_1", w * s * dpsi.T @ dpsi)
+            acc("tension_2", w * s * s * dpsi.T @ dpsi)
+            # forcing shape vectors: columns (v, w, theta_y, theta_z) integrated with 1 and s
+            acc("forcing_0", w * np.vstack([psi, pt]).T)
+            acc("forcing_1", w * s * np.vstack([psi, pt]).T)
+        self.tension = (out.pop("tension_0"), out.pop("tension_1"), out.pop("tension_2"))  # int s^k psi'^T psi'
+        self.forcing_shapes = (out.pop("forcing_0"), out.pop("forcing_1"))  # (8, 4): int psi, int s psi
+        out["mass"] = out["translational_mass"] + out["rotary_mass"]
+        self.matrices = RotorMatrices(**out, axial_stiffening=np.zeros((8, 8)))
+
+    def axial_stiffening(self, x0: float, tension_at_x0: float) -> np.ndarray:
+        """K_G of the element at [x0, x0 + Le] under the tension per unit (Oy^2 + Oz^2) of docs/physics.md#forcing,
+        n(x) = rho A (L^2 - x^2) / 2 + the disks beyond: ``tension_at_x0`` is n(x0)."""
+        t0, t1, t2 = self.tension
+        ra = self.section.rho_A
+        return tension_at_x0 * t0 - ra * x0 * t1 - ra / 2 * t2
+
+    def forcing(self, x0: float) -> np.ndarray:
+        """(8, 4) load shapes for a1..a4 of an element starting at x0 (integrated with x = x0 + s)."""
+        F0, F1 = self.forcing_shapes  # columns v, w, theta_y, theta_z
+        Fx = x0 * F0 + F1
+        ra, i_d, i_p = self.section.rho_A, self.section.i_d, self.section.i_p
+        f = np.zeros((8, 4))
+        f[:, 0] = -ra * Fx[:, 0] - i_d * F0[:, 3]
+        f[:, 1] = ra * Fx[:, 1] - i_d * F0[:, 2]
+        f[:, 2] = -i_p * F0[:, 2]
+        f[:, 3] = i_p * F0[:, 3]
+        return f
 
 
 @dataclass(frozen=True)
@@ -173,33 +204,44 @@ def disk_props(disk: DiskConfig, density: float) -> DiskProps:
     return DiskProps(disk.node, m, Ip, Id)
 
 
-def disk_matrices(dp: DiskProps, seed_disk_H: str = "literal") -> dict[str, np.ndarray]:
-    """4x4 disk matrices on [v, w, theta_y, theta_z] (docs/physics.md#disk, #formulations)."""
-    m, Ip, Id = dp.m, dp.Ip, dp.Id
-    z2 = np.zeros((2, 2))
+class DiskElement:
+    """A rigid disk on one node (4 DOFs [v, w, theta_y, theta_z]), as ROSS's DiskElement.
 
-    def blk(a, b):
-        return np.block([[a, z2], [z2, b]])
+    ``seed_disk_H``: ``literal`` gives the seed formulation's Hs the printed pattern, ``consistent`` the derived
+    H1's sign (docs/physics.md#formulations).
+    """
 
-    hs = Ip * LOWER if seed_disk_H == "literal" else -Ip * UPPER
-    return {
-        "M": np.diag([m, m, Id, Id]),
-        "Mt": np.diag([m, m, 0.0, 0.0]),
-        "Mr": np.diag([0.0, 0.0, Id, Id]),
-        "K_B": np.zeros((4, 4)),
-        "G": blk(z2, -Ip * J2),
-        "C": blk(m * J2, Id * J2),
-        "P": np.diag([0.0, 0.0, Ip, Ip]),
-        "Kp11": np.diag([m, 0.0, Ip - Id, 0.0]),
-        "Kp22": np.diag([0.0, m, 0.0, Ip - Id]),
-        "Kp12": blk(m * S2, (Ip - Id) * S2),
-        "H1": blk(z2, Ip * UPPER),
-        "Gs": blk(z2, Ip * J2),
-        "Kp11s": np.diag([m, 0.0, Ip, 0.0]),
-        "Kp22s": np.diag([0.0, m, 0.0, Ip]),
-        "Kp12s": blk(m * S2, (Ip - Id) * S2),
-        "Hs": blk(z2, hs),
-    }
+    def __init__(self, props: DiskProps, seed_disk_H: str = "literal"):
+        self.props = props
+        m, Ip, Id = props.m, props.Ip, props.Id
+        z2 = np.zeros((2, 2))
+
+        def blk(a, b):
+            return np.block([[a, z2], [z2, b]])
+
+        self.matrices = RotorMatrices(
+            mass=np.diag([m, m, Id, Id]),
+            translational_mass=np.diag([m, m, 0.0, 0.0]),
+            rotary_mass=np.diag([0.0, 0.0, Id, Id]),
+            shaft_stiffness=np.zeros((4, 4)),
+            gyroscopic=blk(z2, -Ip * J2),
+            coriolis=blk(m * J2, Id * J2),
+            spin_roll=np.diag([0.0, 0.0, Ip, Ip]),
+            centrifugal_z=np.diag([m, 0.0, Ip - Id, 0.0]),
+            centrifugal_y=np.diag([0.0, m, 0.0, Ip - Id]),
+            centrifugal_yz=blk(m * S2, (Ip - Id) * S2),
+            spin_acceleration=blk(z2, Ip * UPPER),
+            seed_gyroscopic=blk(z2, Ip * J2),
+            seed_centrifugal_z=np.diag([m, 0.0, Ip, 0.0]),
+            seed_centrifugal_y=np.diag([0.0, m, 0.0, Ip]),
+            seed_centrifugal_yz=blk(m * S2, (Ip - Id) * S2),
+            seed_spin_acceleration=blk(z2, Ip * LOWER if seed_disk_H == "literal" else -Ip * UPPER),
+            axial_stiffening=np.zeros((4, 4)),
+        )
+
+    def forcing(self, xd: float) -> np.ndarray:
+        """(4, 4) load shapes for a1..a4 of the disk at axial position xd (m)."""
+        return disk_forcing(self.props, xd)
 
 
 def disk_forcing(dp: DiskProps, xd: float) -> np.ndarray:
@@ -215,36 +257,16 @@ def disk_forcing(dp: DiskProps, xd: float) -> np.ndarray:
     return f
 
 
-MATRIX_NAMES = (
-    "M",
-    "Mt",
-    "Mr",
-    "K_B",
-    "G",
-    "C",
-    "P",
-    "Kp11",
-    "Kp22",
-    "Kp12",
-    "H1",
-    "Gs",
-    "Kp11s",
-    "Kp22s",
-    "Kp12s",
-    "Hs",
-)
-
-
 @dataclass(frozen=True)
 class FEModel:
     """Global constant matrices (n x n, n = 4 * nodes) and forcing shapes of the free rotor.
 
-    ``mats`` holds every name of MATRIX_NAMES plus ``K_G`` (geometric stiffness per unit
-    Omega_y^2 + Omega_z^2); ``forcing`` is (n, 4): the load vectors f1..f4 of docs/physics.md#forcing for the
-    coefficients a1 = dOz + Ox*Oy, a2 = dOy - Ox*Oz, a3 = Phi*Oz, a4 = Phi*Oy.
+    ``matrices``: :class:`RotorMatrices` (no structural damping yet); ``forcing`` is (n, 4): the load vectors
+    f1..f4 of docs/physics.md#forcing for the coefficients a1 = dOz + Ox*Oy, a2 = dOy - Ox*Oz, a3 = Phi*Oz,
+    a4 = Phi*Oy.
     """
 
-    mats: dict[str, np.ndarray]
+    matrices: RotorMatrices
     forcing: np.ndarray
     node_x: np.ndarray
     disks: tuple[DiskProps, ...]
@@ -252,7 +274,7 @@ class FEModel:
 
     @property
     def n(self) -> int:
-        return self.mats["M"].shape[0]
+        return self.matrices.n
 
     def dof_names(self) -> list[str]:
         return [f"n{k + 1}_{d}" for k in range(len(self.node_x)) for d in DOF_NAMES]
@@ -268,33 +290,23 @@ def assemble(cfg: RotorConfig) -> FEModel:
     sec = section_of(cfg)
     ne, Le = cfg.shaft.elements, sec.length
     n = 4 * (ne + 1)
-    el = element_matrices(sec)
-    mats = {name: np.zeros((n, n)) for name in (*MATRIX_NAMES, "K_G")}
+    shaft = ShaftElement(sec)  # a uniform shaft: every element is the same
+    mats = RotorMatrices.zeros(n)
     forcing = np.zeros((n, 4))
     node_x = np.arange(ne + 1) * Le
-    disks = tuple(disk_props(d, cfg.shaft.density) for d in cfg.disks)
+    disks = tuple(DiskElement(disk_props(d, cfg.shaft.density), cfg.seed_disk_H) for d in cfg.disks)
     L = cfg.shaft.length
     for e in range(ne):
         idx = slice(4 * e, 4 * e + 8)
-        for name in MATRIX_NAMES:
-            mats[name][idx, idx] += el[name]
+        mats.add_block(idx, shaft.matrices)
         x0 = node_x[e]
         # tension per unit (Oy^2 + Oz^2) with the thrust bearing at x = 0 (docs/physics.md#forcing):
         # n(x) = rhoA (L^2 - x^2)/2 + sum of m x_d over disks beyond x; x = x0 + s
-        disk_term = sum(dp.m * node_x[dp.node - 1] for dp in disks if node_x[dp.node - 1] > x0 + 1e-12)
-        a0 = sec.rho_A * (L**2 - x0**2) / 2 + disk_term
-        mats["K_G"][idx, idx] += a0 * el["KG_s0"] - sec.rho_A * x0 * el["KG_s1"] - sec.rho_A / 2 * el["KG_s2"]
-        F0, F1 = el["F0"], el["F1"]  # (8, 4): columns v, w, theta_y, theta_z
-        Fx = x0 * F0 + F1  # integrated with x = x0 + s
-        ra, i_d, i_p = sec.rho_A, sec.i_d, sec.i_p
-        forcing[idx, 0] += -ra * Fx[:, 0] - i_d * F0[:, 3]
-        forcing[idx, 1] += ra * Fx[:, 1] - i_d * F0[:, 2]
-        forcing[idx, 2] += -i_p * F0[:, 2]
-        forcing[idx, 3] += i_p * F0[:, 3]
-    for dp in disks:
-        idx = slice(4 * (dp.node - 1), 4 * dp.node)
-        dm = disk_matrices(dp, cfg.seed_disk_H)
-        for name in MATRIX_NAMES:
-            mats[name][idx, idx] += dm[name]
-        forcing[idx] += disk_forcing(dp, node_x[dp.node - 1])
-    return FEModel(mats=mats, forcing=forcing, node_x=node_x, disks=disks, section=sec)
+        disk_term = sum(d.props.m * node_x[d.props.node - 1] for d in disks if node_x[d.props.node - 1] > x0 + 1e-12)
+        mats.axial_stiffening[idx, idx] += shaft.axial_stiffening(x0, sec.rho_A * (L**2 - x0**2) / 2 + disk_term)
+        forcing[idx] += shaft.forcing(x0)
+    for disk in disks:
+        idx = slice(4 * (disk.props.node - 1), 4 * disk.props.node)
+        mats.add_block(idx, disk.matrices)
+        forcing[idx] += disk.forcing(node_x[disk.props.node - 1])
+    return FEModel(matrices=mats, forcing=forcing, node_x=node_x, disks=tuple(d.props for d in disks), section=sec)

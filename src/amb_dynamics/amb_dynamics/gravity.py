@@ -75,7 +75,7 @@ def gravity_load_shapes(fe: FEModel) -> np.ndarray:
     The shape functions reproduce a rigid translation with zero slope, so M T is the distributed weight
     (shaft and disks) lumped consistently, nodal moments included.  The load of g_B is shapes @ g_B[1:].
     """
-    return fe.mats["M"] @ translation_patterns(fe)
+    return fe.matrices.mass @ translation_patterns(fe)
 
 
 @dataclass(frozen=True)
@@ -104,7 +104,7 @@ def static_amb_load(cfg: RotorConfig, quat_xyzw: np.ndarray | None = None, fe: F
     Ba = selection_matrix(fe.n, cfg.bearings.nodes)
     n, m = fe.n, Ba.shape[1]
     S = np.zeros((n + m, n + m))
-    S[:n, :n] = fe.mats["K_B"]
+    S[:n, :n] = fe.matrices.shaft_stiffness
     S[:n, n:] = -Ba
     S[n:, :n] = Ba.T
     sol = np.linalg.solve(S, np.concatenate([f, np.zeros(m)]))

@@ -37,7 +37,7 @@ def operating_point(model: StructuralModel, cfg: RotorConfig, start_gain: np.nda
         return OperatingPoint(np.zeros(n), np.zeros(Ba.shape[1]), np.zeros(Ba.shape[1]))
     Psi = model.basis if model.basis is not None else np.eye(model.fe.n)
     f_g = Psi.T @ gravity_load_shapes(model.fe) @ gravity_base_frame(None, cfg.gravity.g)[1:]
-    K = model.mats["K_B"] + g.ks * Ba @ Ba.T - g.ki * Ba @ start_gain @ Ba.T
+    K = model.matrices.shaft_stiffness + g.ks * Ba @ Ba.T - g.ki * Ba @ start_gain @ Ba.T
     q = np.linalg.solve(K, f_g + g.ki * Ba @ off)
     y = Ba.T @ q
     return OperatingPoint(q, y, off + start_gain @ y)

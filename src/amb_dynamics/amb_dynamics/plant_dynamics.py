@@ -73,10 +73,10 @@ def structural_damping(model: StructuralModel, dyn: PlantDynamics) -> np.ndarray
     rigid-body modes (w_i below 1e-6 of the highest).
     """
     if not dyn.damped:  # from the config: D_s is in the model (damping.py, projected with the modal basis)
-        Ds = model.mats.get("D_s")
+        Ds = model.matrices.structural_damping
         return Ds if Ds is not None and Ds.any() else None
     kind, alpha, beta, eta = dyn.damping
-    M, K = model.mats["M"], model.mats["K_B"]
+    M, K = model.matrices.mass, model.matrices.shaft_stiffness
     if kind == "rayleigh":
         return alpha * M + beta * K
     w2, Phi = sla.eigh(K, M)
@@ -135,7 +135,7 @@ def open_loop_plant(model: StructuralModel, dyn: PlantDynamics, Minv: np.ndarray
     N = lay.N
     Ap = np.zeros((N, N))
     Ap[:n, n : 2 * n] = np.eye(n)
-    Ap[n : 2 * n, :n] = -Minv @ (model.mats["K_B"] + g.ks * Ba @ Ba.T)
+    Ap[n : 2 * n, :n] = -Minv @ (model.matrices.shaft_stiffness + g.ks * Ba @ Ba.T)
     Ds = structural_damping(model, dyn)
     if Ds is not None:
         Ap[n : 2 * n, n : 2 * n] = -Minv @ Ds

@@ -118,7 +118,7 @@ class RigPlant:
         for j, node in enumerate(nodes):
             S[dof_index(node, 0), 2 * j], S[dof_index(node, 1), 2 * j + 1] = 1.0, 1.0
         S[0::4, -2], S[1::4, -1] = 1.0, 1.0  # rigid unit translations along Y, Z
-        S[:, -2:] = fe.mats["M"] @ S[:, -2:]  # consistent load of a unit acceleration field
+        S[:, -2:] = fe.matrices.mass @ S[:, -2:]  # consistent load of a unit acceleration field
         self.S = Psi.T @ S
         self.BF = np.zeros((self.N, S.shape[1]))
         self.BF[n : 2 * n] = Minv @ self.S

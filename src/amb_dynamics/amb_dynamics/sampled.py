@@ -59,12 +59,14 @@ class PlantStepper:
         if self.dynamics.augmented:  # amplifier lag, sensor filter, shaft damping (plant_dynamics)
             self.Ap0, self.Bp, self.Cm, self.Cy, self.layout = open_loop_plant(model, self.dynamics, Minv)
         else:  # the paper's plant: x_p = [q; q'], ideal current source and sensor
-            Kp = model.mats["K_B"] + model.gains.ks * model.Ba @ model.Ba.T  # negative stiffness, not sampled
+            Kp = (
+                model.matrices.shaft_stiffness + model.gains.ks * model.Ba @ model.Ba.T
+            )  # negative stiffness, not sampled
             self.Ap0 = np.zeros((2 * n, 2 * n))
             self.Ap0[:n, n:] = np.eye(n)
             self.Ap0[n:, :n] = -Minv @ Kp
-            if "D_s" in model.mats:  # structural damping of the shaft (damping.py)
-                self.Ap0[n:, n:] = -Minv @ model.mats["D_s"]
+            if model.matrices.structural_damping is not None:  # of the shaft (damping.py)
+                self.Ap0[n:, n:] = -Minv @ model.matrices.structural_damping
             self.Bp = np.zeros((2 * n, 4))
             self.Bp[n:] = Minv @ model.Ba * model.gains.ki
             self.layout = StateLayout.of(n, self.dynamics)

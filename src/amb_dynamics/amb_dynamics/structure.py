@@ -6,7 +6,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg as sla
@@ -14,7 +14,8 @@ import scipy.linalg as sla
 from .config import RotorConfig
 from .damping import structural_damping_matrix
 from .errors import InputError
-from .fe import DiskProps, FEModel, Section, assemble, disk_forcing, disk_matrices, dof_index
+from .fe import DiskElement, DiskProps, FEModel, Section, assemble, dof_index
+from .rotor_matrices import RotorMatrices
 
 AXIS_NAMES = ("y", "z")
 
@@ -58,13 +59,13 @@ class AMBGains:
 class StructuralModel:
     """Matrices in generalised coordinates q (n of them).
 
-    mats : dict of (n, n) arrays, names of fe.MATRIX_NAMES plus K_G.
+    matrices : :class:`RotorMatrices` (n, n), structural damping included.
     Ba : (n, 4) AMB selection, y = Ba^T q for channels ``channels``.
     forcing : (n, 4) load shapes for a1..a4 (docs/physics.md#forcing).
     basis : (n_fe, n) modal basis Psi_r (q_fe = Psi_r q), or None for the full FE model.
     """
 
-    mats: dict[str, np.ndarray]
+    matrices: RotorMatrices
     Ba: np.ndarray
     forcing: np.ndarray
     gains: AMBGains
@@ -75,11 +76,11 @@ class StructuralModel:
 
     @property
     def n(self) -> int:
-        return self.mats["M"].shape[0]
+        return self.matrices.n
 
     @property
     def M(self) -> np.ndarray:
-        return self.mats["M"]
+        return self.matrices.mass
 
     def to_fe(self, q: np.ndarray) -> np.ndarray:
         """FE nodal DOFs from generalised coordinates (last axis)."""
@@ -89,7 +90,7 @@ class StructuralModel:
         """Generalised coordinates of FE nodal DOFs: least squares in the mass metric."""
         if self.basis is None:
             return q_fe
-        return q_fe @ (self.fe.mats["M"] @ self.basis)  # Psi^T M q with Psi^T M Psi = I
+        return q_fe @ (self.fe.matrices.mass @ self.basis)  # Psi^T M q with Psi^T M Psi = I
 
 
 def selection_matrix(n: int, nodes: tuple[int, ...]) -> np.ndarray:
@@ -110,8 +111,10 @@ def build_structure(cfg: RotorConfig, fe: FEModel | None = None) -> StructuralMo
     fe = fe if fe is not None else assemble(cfg)
     gains = AMBGains.from_config(cfg)
     Ba = selection_matrix(fe.n, cfg.bearings.nodes)
-    mats = dict(fe.mats)
-    mats["D_s"] = structural_damping_matrix(fe.mats["M"], fe.mats["K_B"], cfg.structural_damping)
+    fm = fe.matrices
+    mats = replace(
+        fm, structural_damping=structural_damping_matrix(fm.mass, fm.shaft_stiffness, cfg.structural_damping)
+    )
     model = StructuralModel(
         mats,
         Ba,
@@ -141,34 +144,29 @@ def rigid_disk_model(
     The damper enters as an ideal-derivative 'bearing' on v and w (ki kd = c, ki kp + ks = 0).
     """
 
-    dp = DiskProps(1, m, Ip, Id)
-    dm = disk_matrices(dp, cfg.seed_disk_H if cfg is not None else "literal")
-    mats = {k: np.array(v, dtype=float) for k, v in dm.items()}
-    mats["K_B"] = np.array(K_B, dtype=float)
-    mats["K_G"] = np.zeros((4, 4))
+    disk = DiskElement(DiskProps(1, m, Ip, Id), cfg.seed_disk_H if cfg is not None else "literal")
+    mats = replace(disk.matrices, shaft_stiffness=np.array(K_B, dtype=float))
     fe = FEModel(
-        mats=mats,
-        forcing=disk_forcing(dp, 0.0),  # the disk sits at the base-rotation centre x = 0
+        matrices=mats,
+        forcing=disk.forcing(0.0),  # the disk sits at the base-rotation centre x = 0
         node_x=np.zeros(1),
-        disks=(dp,),
+        disks=(disk.props,),
         section=Section(0.0, 0.0, 0.0, 0.0, np.inf, 0.0),
     )
     gains = AMBGains(ki=1.0, ks=0.0, kp=0.0, kI=0.0, kd=float(c), omega_f=None)
     Ba = selection_matrix(4, (1,))
-    return StructuralModel(
-        dict(mats), Ba, fe.forcing.copy(), gains, channel_names((1,)), fe, None, tuple(fe.dof_names())
-    )
+    return StructuralModel(mats, Ba, fe.forcing.copy(), gains, channel_names((1,)), fe, None, tuple(fe.dof_names()))
 
 
 def reduce_modal(model: StructuralModel, cutoff: float) -> StructuralModel:
     """Project on the mass-normalised modes of (M, K_B + K_brg) below ``cutoff`` (rad/s)."""
-    K = model.mats["K_B"] + model.gains.k_eq * model.Ba @ model.Ba.T
+    K = model.matrices.shaft_stiffness + model.gains.k_eq * model.Ba @ model.Ba.T
     w2, vecs = sla.eigh(K, model.M)
     keep = np.sqrt(np.clip(w2, 0.0, None)) < cutoff
     if not keep.any():
         raise InputError(f"modal_cutoff {cutoff:g} rad/s keeps no mode (lowest {np.sqrt(max(w2[0], 0)):.4g})")
     Psi = vecs[:, keep]
-    mats = {k: Psi.T @ v @ Psi for k, v in model.mats.items()}
+    mats = model.matrices.map(lambda X: Psi.T @ X @ Psi)
     names = tuple(f"mode{j + 1}" for j in range(Psi.shape[1]))
     return StructuralModel(
         mats,

@@ -54,19 +54,20 @@ def forcing_values(motion: BaseMotion, spin: float, t) -> np.ndarray:
 
 def parametric_matrices(model: StructuralModel, cfg: RotorConfig) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """(K_j, D_j) multiplying each coefficient: K(t) = K_const + sum c_j K_j, D(t) = ... + sum c_j D_j."""
-    m = model.mats
-    z = np.zeros_like(m["M"])
+    m = model.matrices
+    z = np.zeros_like(m.mass)
     if cfg.formulation == "seed":
-        G, P, K11, K22, K12, H = m["Gs"], z, m["Kp11s"], m["Kp22s"], m["Kp12s"], -m["Hs"]
+        G, P, K11, K22, K12 = m.seed_gyroscopic, z, m.seed_centrifugal_z, m.seed_centrifugal_y, m.seed_centrifugal_yz
+        H = -m.seed_spin_acceleration
     else:
-        G, P, K11, K22, K12 = m["G"], m["P"], m["Kp11"], m["Kp22"], m["Kp12"]
-        H = m["H1"] if cfg.drive_model == "cardan" else z
-    KG = m["K_G"] if cfg.axial_stiffening else z
+        G, P, K11, K22, K12 = m.gyroscopic, m.spin_roll, m.centrifugal_z, m.centrifugal_y, m.centrifugal_yz
+        H = m.spin_acceleration if cfg.drive_model == "cardan" else z
+    KG = m.axial_stiffening if cfg.axial_stiffening else z
     return {
         "Phi": (z, G),
-        "Ox": (z, 2 * m["C"]),
-        "dOx": (m["C"], z),
-        "Ox2": (-m["M"], z),
+        "Ox": (z, 2 * m.coriolis),
+        "dOx": (m.coriolis, z),
+        "Ox2": (-m.mass, z),
         "OxPhi": (P, z),
         "Oy2": (-K22, z),
         "Oz2": (-K11, z),
@@ -175,8 +176,9 @@ def _paper_closed_loop(model: StructuralModel, Minv: np.ndarray, ne: int, nf: in
     N = 2 * n + ne + nf
     Ky = g.ki * g.kp + g.ks + (g.ki * g.kd * g.omega_f if use_filt else 0.0)
     Dy = 0.0 if use_filt else g.ki * g.kd
-    K0 = model.mats["K_B"] + Ky * Ba @ Ba.T
-    D0 = Dy * Ba @ Ba.T + model.mats.get("D_s", 0.0)  # structural damping of the shaft (damping.py)
+    K0 = model.matrices.shaft_stiffness + Ky * Ba @ Ba.T
+    Ds = model.matrices.structural_damping  # of the shaft (damping.py)
+    D0 = Dy * Ba @ Ba.T + (0.0 if Ds is None else Ds)
     A0 = np.zeros((N, N))
     A0[:n, n : 2 * n] = np.eye(n)
     A0[n : 2 * n, :n] = -Minv @ K0
