@@ -64,6 +64,10 @@ class DdsRecorder:
         self.ctx.try_shutdown()
 
 
+# a shallow, wide notch over the real rig's bending modes at 690-940 Hz on AMB1's axes (docs/commissioning.md)
+AMB1_NOTCH = "controller.filters=[{kind: notch, frequency_hz: 700, bandwidth_hz: 400, depth: 0.5, axes: [0, 1]}]"
+
+
 def rig_json(text: str) -> dict:
     return json.loads(text[text.index("{") : text.rindex("}") + 1])
 
