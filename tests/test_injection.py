@@ -1,12 +1,12 @@
 """The sensor-signal injection (ISO 14839-3) through the offline digital loop, estimated and compared with the
-frequency-domain model of the same loop; the predicted amplifier current against the simulated one."""
+frequency-domain model of the same loop; the predicted amplifier current and slew against the simulated ones."""
 
 import numpy as np
 import pytest
 
 from amb_dynamics.config import load_config
 from amb_dynamics.errors import InputError
-from amb_dynamics.injection import Injection, InjectionSpec, predicted_peak_current
+from amb_dynamics.injection import Injection, InjectionSpec, overload, predicted_load, predicted_peak_current
 from amb_dynamics.sampled import SampledLoop
 from amb_dynamics.sensitivity import ModalResponse, loop_state_spaces, sensitivity_state_space
 from amb_dynamics.sensitivity_estimate import estimate_sensitivity
@@ -49,6 +49,37 @@ def test_multisine_injection_matches_digital_loop_model(axis):
     assert np.max(np.abs(m.S[good] - S_model[good]) / np.abs(S_model[good])) < 0.05
     # the amplifier current the refusal check predicts, against the simulated steady state
     assert predicted_peak_current(model, cfg, axis, inj) == pytest.approx(np.abs(cur[2 * P :]).max(), rel=0.05)
+
+
+def test_predicted_slew_matches_the_simulated_amplifier():
+    """Real-rig default (5 kHz, first-order 2 kHz current loop, sensor filter), linear digital loop: a multisine
+    over 500-1200 Hz on amb1_y.  The amplifier's slope w_a |i_c - i_a| at the sample instants, simulated step by
+    step, against the frequency-domain prediction; 10 um exceeds the amplifier's V/L there, 2 um does not."""
+    from amb_dynamics.plant_dynamics import PlantDynamics
+
+    cfg = load_config(None)
+    model = build_structure(cfg)
+    fs = cfg.controller.rate_hz
+    inj = Injection(InjectionSpec("multisine", 2e-6, (500.0, 1200.0), 1.0, 0.0, 10.0, ramp_s=0.02), fs)
+    loop = SampledLoop(model, cfg, forcing=False)
+    law = loop.new_controller()
+    amp, wa = loop.plant.layout.amp, PlantDynamics.from_config(cfg).amplifier_rad_s
+    x, zero, steps = np.zeros(loop.plant.layout.N), np.zeros(3), 2000
+    E = inj.values(np.arange(steps))
+    gap, cur = np.zeros(steps), np.zeros(steps)
+    for k in range(steps):
+        y = loop.plant.output(x)
+        y[0] += E[k]
+        u = law.step(y)
+        gap[k], cur[k] = u[0] - x[amp][0], u[0]
+        x = loop.plant.step(x, u, zero, zero)
+    last = slice(steps - 2 * inj.period_samples(), steps)  # steady state: the transients of 0.2 s have decayed
+    load = predicted_load(model, cfg, 0, inj)
+    assert load.slew == pytest.approx(wa * np.abs(gap[last]).max(), rel=0.02)
+    assert load.current == pytest.approx(np.abs(cur[last]).max(), rel=0.02)
+    assert overload(load, cfg) is None and load.slew > 0.2 * cfg.actuator.slew_limit  # 2 um: well below, not tiny
+    big = Injection(InjectionSpec("multisine", 10e-6, (500.0, 1200.0), 1.0, 0.0, 10.0), fs)
+    assert "slew" in overload(predicted_load(model, cfg, 0, big), cfg)
 
 
 def test_signals_peak_band_and_window():

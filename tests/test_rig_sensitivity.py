@@ -86,6 +86,7 @@ def test_measured_notch_lowers_the_bending_mode_peak(venv_bin, tmp_path):
         (["--axis", "amb3_y"], "amb3_y"),
         (["--axis", "amb1_y", "--band", "5:5"], "empty"),
         (["--axis", "amb1_y", "--amplitude", "0.01"], "current limit"),
+        (["--axis", "amb1_y", "--band", "500:1200", "--resolution", "10"], "slew"),  # 10 um over the bending modes
         (["--axis", "amb1_y", "--band", "5:2600"], "Nyquist"),
     ],
 )

@@ -7,7 +7,7 @@
 Runs the rig (`amb-rig run` machinery, static base, no monitor) with the controller's injection on ``--axis``,
 records /amb/injection into a bag, estimates S = y_m/E (H1, coherence; :mod:`amb_bag.sensitivity`) and puts the
 model of the digital loop (:mod:`amb_dynamics.sensitivity`, same config) beside it.  Everything that can be
-checked before starting (axis, band, Nyquist, amplitude vs current limit) is, with one line and exit 2.
+checked before starting (axis, band, Nyquist, amplitude vs current and slew limits) is, with one line and exit 2.
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def check(args):
     from amb_dynamics.analysis_sensitivity import parse_band
     from amb_dynamics.config import load_config
     from amb_dynamics.errors import InputError
-    from amb_dynamics.injection import Injection, InjectionSpec, predicted_peak_current
+    from amb_dynamics.injection import Injection, InjectionSpec, overload, predicted_load
     from amb_dynamics.structure import build_structure
 
     cfg = load_config(args.config, args.set)
@@ -62,11 +62,11 @@ def check(args):
     spec = InjectionSpec(args.kind, args.amplitude, band, args.duration, 0.0, args.resolution)
     inj = Injection(spec, cfg.controller.rate_hz)
     j = model.channels.index(args.axis)
-    current = predicted_peak_current(model, cfg, j, inj)
-    if current > cfg.controller.current_limit and not args.force:
+    why = overload(predicted_load(model, cfg, j, inj), cfg)
+    if why is not None and not args.force:
         raise InputError(
-            f"--amplitude {args.amplitude:g} m would drive about {current:.3g} A on {args.axis} (model of the "
-            f"digital loop), above the current limit {cfg.controller.current_limit:g} A: lower it or use --force"
+            f"--amplitude {args.amplitude:g} m would drive {why} on {args.axis} (model of the digital loop): "
+            "lower it or use --force"
         )
     return cfg, model, j, band
 

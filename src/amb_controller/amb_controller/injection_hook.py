@@ -3,8 +3,8 @@
 E (:mod:`amb_dynamics.injection`) is added to the sampled displacement of one axis before the PID sees it; every
 answered sample publishes ``/amb/injection`` (sensor_msgs/JointState, stamp = the sample's, name = ["injection",
 "disturbed"], position = [E, y_m] in m, frame_id = the axis) while the injection is configured.  An amplitude whose
-predicted steady-state current (digital-loop model, :func:`amb_dynamics.injection.predicted_peak_current`) exceeds
-the amplifier's current limit is refused unless ``injection_force`` is true.
+predicted steady-state current or current slew (digital-loop model, :func:`amb_dynamics.injection.predicted_load`)
+exceeds the amplifier's current limit or its V/L is refused unless ``injection_force`` is true.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from sensor_msgs.msg import JointState
 
 import amb_ros.messages as m
 from amb_dynamics.errors import InputError
-from amb_dynamics.injection import KINDS, Injection, InjectionSpec, predicted_peak_current
+from amb_dynamics.injection import KINDS, Injection, InjectionSpec, overload, predicted_load
 from amb_dynamics.structure import build_structure
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos
@@ -36,7 +36,7 @@ def injection_specs() -> list[ParamSpec]:
                   1e-6, 1e6),
         ParamSpec("injection_steps", 20, "stepped sine: number of frequencies", "", 1, 100000),
         ParamSpec("injection_ramp_s", 0.5, "raised-cosine fade-in", "s", 0.0, 1e6),
-        ParamSpec("injection_force", False, "inject even if the predicted current exceeds the current limit"),
+        ParamSpec("injection_force", False, "inject even if the predicted current or slew exceeds its limit"),
     ]  # fmt: skip
 
 
@@ -67,13 +67,13 @@ class InjectionHook:
         )
         self.fs = 1.0 / node.Ts
         self.injection = Injection(spec, self.fs)
-        self.predicted_current = predicted_peak_current(build_structure(node.cfg), node.cfg, self.axis, self.injection)
-        limit = p["current_limit"]
-        if self.predicted_current > limit and not p["injection_force"]:
+        load = predicted_load(build_structure(node.cfg), node.cfg, self.axis, self.injection)
+        self.predicted_current = load.current
+        why = overload(load, node.cfg, p["current_limit"])
+        if why is not None and not p["injection_force"]:
             raise InputError(
-                f"injection of {spec.amplitude:g} m on {p['injection_axis']} would drive about "
-                f"{self.predicted_current:.3g} A (model of the digital loop), above current_limit {limit:g} A: lower "
-                "injection_amplitude or set injection_force:=true"
+                f"injection of {spec.amplitude:g} m on {p['injection_axis']} would drive {why} (model of the digital "
+                "loop): lower injection_amplitude or set injection_force:=true"
             )
         self.pub = node.create_publisher(JointState, INJECTION, data_qos(node.mode, p["qos_depth"]))
         self.names = (f"{p['injection_axis']}_injection", f"{p['injection_axis']}_disturbed")

@@ -31,6 +31,11 @@ class ActuatorConfig:
         "V", 0.0, open_lo=True, default=None, doc="|di/dt| <= V/L (set with coil_inductance); null = no slew limit"
     )
 
+    @property
+    def slew_limit(self) -> float | None:
+        """The largest |di/dt| (A/s), V/L; None without a voltage limit."""
+        return None if self.coil_inductance is None else self.supply_voltage / self.coil_inductance
+
 
 @dataclass(frozen=True)
 class SensorConfig:

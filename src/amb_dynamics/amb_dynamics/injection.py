@@ -134,13 +134,29 @@ class Injection:
         return float(self._table[i % self._table.size]) * ramp
 
 
-def predicted_peak_current(model, cfg, axis: int, injection: Injection, speed_rpm: float | None = None) -> float:
-    """Steady-state peak current (A) the injection drives on its own axis through the digital loop.
+@dataclass(frozen=True)
+class InjectionLoad:
+    """What an injection asks of its axis's amplifier, predicted by the digital-loop model (steady state).
 
-    The controller output per unit E with every loop closed is (K S)_jj.  Multisine: the exact periodic steady
-    state (sum of its lines through K S) over one period; swept and stepped sines: max|E| x max over the band of
-    |(K S)_jj| (quasi-stationary).
+    current : peak commanded current (A).
+    slew : peak rate the amplifier must follow (A/s): its current loop's slope w_a |i_c - i_a| at the start of a
+        sample (the first-order loop the plant runs; with an ideal amplifier, the held current's jump per sample
+        times the rate).  The plant limits it to V/L (``actuator.slew_limit``).
     """
+
+    current: float
+    slew: float
+
+
+def predicted_load(model, cfg, axis: int, injection: Injection, speed_rpm: float | None = None) -> InjectionLoad:
+    """Peak current and slew rate the injection drives on its own axis through the digital loop.
+
+    The controller output per unit E with every loop closed is (K S)_jj; the amplifier's lag i_c - i_a at the
+    sample instants follows from it through (1 - z^-1) / (1 - a z^-1), a = exp(-w_a Ts).  Multisine: the exact
+    periodic steady state (sum of its lines) over one period; swept and stepped sines: max|E| x the largest
+    response over the band (quasi-stationary).
+    """
+    from .plant_dynamics import PlantDynamics
     from .sensitivity import ModalResponse, loop_state_spaces, sensitivity_state_space
 
     plant, ctrl = loop_state_spaces(model, cfg, cfg.spin_speed_rpm if speed_rpm is None else speed_rpm, "sampled")
@@ -149,10 +165,37 @@ def predicted_peak_current(model, cfg, axis: int, injection: Injection, speed_rp
     w = 2 * np.pi * f
     S = ModalResponse.of(sensitivity_state_space(plant, ctrl))(w)
     ks = (ctrl.freqresp(w) @ S)[:, axis, axis]
+    wa = PlantDynamics.from_config(cfg).amplifier_rad_s
+    Ts = 1.0 / injection.fs
+    a = 0.0 if wa is None else math.exp(-wa * Ts)
+    z1 = np.exp(-1j * w * Ts)
+    lag = ks * (1 - z1) / (1 - a * z1)  # i_c - i_a per unit E
+    per_s = injection.fs if wa is None else wa
     if spec.kind == "multisine":
         t = np.arange(injection.period_samples()) / injection.fs
-        u = (injection._scale * np.abs(ks) * np.cos(2 * np.pi * np.outer(t, f) + injection._phase + np.angle(ks))).sum(
-            1
-        )
-        return float(np.abs(u).max())
-    return float(spec.amplitude * np.abs(ks).max())
+
+        def peak(h: np.ndarray) -> float:
+            phase = 2 * np.pi * np.outer(t, f) + injection._phase + np.angle(h)
+            return float(np.abs((injection._scale * np.abs(h) * np.cos(phase)).sum(1)).max())
+
+        return InjectionLoad(peak(ks), per_s * peak(lag))
+    return InjectionLoad(float(spec.amplitude * np.abs(ks).max()), float(per_s * spec.amplitude * np.abs(lag).max()))
+
+
+def predicted_peak_current(model, cfg, axis: int, injection: Injection, speed_rpm: float | None = None) -> float:
+    """Steady-state peak current (A) the injection drives on its own axis (:func:`predicted_load`)."""
+    return predicted_load(model, cfg, axis, injection, speed_rpm).current
+
+
+def overload(load: InjectionLoad, cfg, current_limit: float | None = None) -> str | None:
+    """Why the predicted load is too much for the amplifier (current limit, then slew limit), or None.
+
+    ``current_limit``: the controller's own (a node parameter may override the config's)."""
+    limit = cfg.controller.current_limit if current_limit is None else current_limit
+    if load.current > limit:
+        return f"about {load.current:.3g} A, above the current limit {limit:g} A"
+    limit = cfg.actuator.slew_limit
+    if limit is not None and load.slew > limit:
+        return (f"a current slew of about {load.slew * 1e-3:.3g} A/ms, above the amplifier's V/L = "
+                f"{limit * 1e-3:.3g} A/ms (the loop would leave its linear model)")  # fmt: skip
+    return None

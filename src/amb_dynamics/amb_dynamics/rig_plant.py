@@ -126,8 +126,7 @@ class RigPlant:
         self.unb = [(nodes.index(d.node), *disk_unbalance(d, cfg.shaft.density, cfg.max_speed_rpm)) for d in cfg.disks]
         self.unb = [(j, U, ph) for j, U, ph in self.unb if U]
         self.g = cfg.gravity.g if cfg.gravity.enabled else 0.0
-        act = cfg.actuator
-        self.slew = None if act.coil_inductance is None else act.supply_voltage / act.coil_inductance
+        self.slew = cfg.actuator.slew_limit
         self.limit = cfg.controller.current_limit if current_limit is None else current_limit
         sens, dist = cfg.sensor, cfg.disturbances
         self.runout = sens.runout
