@@ -68,6 +68,25 @@ class DdsRecorder:
 AMB1_NOTCH = "controller.filters=[{kind: notch, frequency_hz: 700, bandwidth_hz: 400, depth: 0.5, axes: [0, 1]}]"
 
 
+TS_NS = 200_000  # the seed configs' 5 kHz loop (ns)
+
+
+def stamp(msg) -> int:
+    """A message's header stamp in ns."""
+    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
+
+def user_pid_setting(gains, continuous: bool, Ts: float = TS_NS / 1e9) -> str:
+    """A ``controller.state_space=...`` override equal to the PID of ``gains`` (continuous, or discrete at Ts)."""
+    from amb_dynamics.control_law import discrete_pid_state_space, pid_state_space
+
+    ss = pid_state_space(gains, 1) if continuous else discrete_pid_state_space(gains, Ts, 0, 1)
+    rows = lambda M: "[" + ", ".join("[" + ", ".join(repr(float(v)) for v in r) + "]" for r in M) + "]"  # noqa: E731
+    dt = "null" if continuous else repr(Ts)
+    return (f"controller.state_space={{A: {rows(ss.A)}, B: {rows(ss.B)}, C: {rows(ss.C)}, D: {rows(ss.D)}, "
+            f"sample_time: {dt}}}")  # fmt: skip
+
+
 def rig_json(text: str) -> dict:
     return json.loads(text[text.index("{") : text.rindex("}") + 1])
 

@@ -17,7 +17,6 @@ from amb_dynamics.config import load_config, paper_config_path
 from amb_dynamics.config_control import FilterConfig
 from amb_dynamics.control_law import (
     continuous_controller,
-    discrete_pid_state_space,
     filter_state_space,
     pid_state_space,
 )
@@ -29,6 +28,7 @@ from amb_dynamics.sensitivity import loop_state_spaces, sensitivity_matrix
 from amb_dynamics.state_space import StateSpace, series, tustin, tustin_inverse
 from amb_dynamics.structure import AMBGains, build_structure
 from amb_dynamics.system import closed_loop
+from helpers import user_pid_setting
 
 TS = 2e-4
 IDENTITY = "controller.filters=[{kind: notch, frequency_hz: 300, bandwidth_hz: 40, depth: 1}, " \
@@ -119,18 +119,12 @@ def test_identity_filters_leave_every_analysis_unchanged(path):
         assert np.abs(S_f - S).max() <= 1e-7 * np.abs(S).max()
 
 
-def _user_pid(gains: AMBGains, continuous: bool) -> str:
-    ss = pid_state_space(gains, 1) if continuous else discrete_pid_state_space(gains, TS, 0, 1)
-    rows = lambda M: "[" + ", ".join("[" + ", ".join(repr(float(v)) for v in r) + "]" for r in M) + "]"  # noqa: E731
-    dt = "null" if continuous else repr(TS)
-    return (f"controller.state_space={{A: {rows(ss.A)}, B: {rows(ss.B)}, C: {rows(ss.C)}, D: {rows(ss.D)}, "
-            f"sample_time: {dt}}}")  # fmt: skip
-
-
 def test_user_state_space_equal_to_the_continuous_pid():
     cfg = load_config(paper_config_path(), ["controller.derivative_filter_hz=800", "controller.integral_gain=3e4"])
     model = build_structure(cfg)
-    user = load_config(paper_config_path(), ["controller.derivative_filter_hz=800", _user_pid(model.gains, True)])
+    user = load_config(
+        paper_config_path(), ["controller.derivative_filter_hz=800", user_pid_setting(model.gains, True)]
+    )
     a = np.sort_complex(np.linalg.eigvals(closed_loop(model, cfg).A0))
     b = np.sort_complex(np.linalg.eigvals(closed_loop(model, user).A0))
     assert a.shape == b.shape and _contains(a, b, 1e-9) < 1e-9 and _contains(b, a, 1e-9) < 1e-9
@@ -144,7 +138,7 @@ def test_user_discrete_state_space_runs_as_the_pid_offline():
     """The real rig (gravity, bias offsets, noise, unbalance): the user's PID starts and runs as the PID does."""
     cfg = load_config(None)
     model = build_structure(cfg)
-    user = load_config(None, [_user_pid(model.gains, False)])
+    user = load_config(None, [user_pid_setting(model.gains, False)])
     F = SampledLoop(model, cfg).step_map(np.zeros(3), np.zeros(3))
     F_u = SampledLoop(model, user).step_map(np.zeros(3), np.zeros(3))
     assert np.abs(F_u - F).max() <= 1e-12 * np.abs(F).max()

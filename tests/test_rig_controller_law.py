@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_controller_filters import _user_pid
-from test_rig_lockstep import TS_NS, DdsRecorder, run_rig, stamp
 
 from amb_dynamics.config import load_config
 from amb_dynamics.motion import BaseMotion
 from amb_dynamics.rig_loop import simulate_rig
 from amb_dynamics.structure import build_structure
+from helpers import TS_NS, DdsRecorder, run_rig, stamp, user_pid_setting
 
 pytestmark = pytest.mark.ros
 
@@ -47,7 +46,7 @@ def _lockstep(tmp_path, venv_bin, item: str):
 @pytest.mark.parametrize("case", ["filters", "user_pid"])
 def test_node_runs_the_configured_controller_as_the_core(tmp_path, venv_bin, case):
     model = build_structure(load_config(None))
-    item = FILTERS if case == "filters" else _user_pid(model.gains, continuous=False)
+    item = FILTERS if case == "filters" else user_pid_setting(model.gains, continuous=False)
     steps, y, i = _lockstep(tmp_path, venv_bin, item)
     ref_cfg = load_config(None, [FILTERS] if case == "filters" else [])
     ref = simulate_rig(model, ref_cfg, BaseMotion(), steps)

@@ -19,17 +19,12 @@ from amb_dynamics.fe import dof_index
 from amb_dynamics.motion import BaseMotion
 from amb_dynamics.sampled import SampledLoop
 from amb_dynamics.structure import build_structure
-from helpers import DdsRecorder, run_rig
+from helpers import TS_NS, DdsRecorder, run_rig, stamp
 
 pytestmark = pytest.mark.ros
 
 DURATION_S = 0.4  # 2000 steps at 5 kHz
-TS_NS = 200_000
 DISK_V = 1e-4  # m
-
-
-def stamp(msg) -> int:
-    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
 
 
 def lockstep_run(tmp_path, venv_bin, extra=()):

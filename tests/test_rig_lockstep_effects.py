@@ -13,12 +13,12 @@ import json
 
 import numpy as np
 import pytest
-from test_rig_lockstep import TS_NS, DdsRecorder, run_rig, stamp
 
 from amb_dynamics.config import load_config
 from amb_dynamics.motion import BaseMotion
 from amb_dynamics.rig_loop import simulate_rig
 from amb_dynamics.structure import build_structure
+from helpers import TS_NS, DdsRecorder, run_rig, stamp
 
 pytestmark = pytest.mark.ros
 
