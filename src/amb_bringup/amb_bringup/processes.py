@@ -155,7 +155,7 @@ def bag_process(args, run_dir: Path) -> ProcessSpec | None:
         raise FileNotFoundError("--bag needs the amb-bag recorder, which is not installed")
     return ProcessSpec(
         "recorder",
-        [exe, "record", "-o", str(args.bag), "--priority", consumer_priority(args.mode)],
+        [exe, "record", *recorder_arguments(args)],
         node="amb_bag_recorder",
         required=True,
         stop_tier=2,
