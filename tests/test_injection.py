@@ -6,7 +6,7 @@ import pytest
 
 from amb_dynamics.config import load_config
 from amb_dynamics.errors import InputError
-from amb_dynamics.injection import Injection, InjectionSpec, overload, predicted_load, predicted_peak_current
+from amb_dynamics.injection import Injection, InjectionSpec, overload, predicted_load
 from amb_dynamics.sampled import SampledLoop
 from amb_dynamics.sensitivity import ModalResponse, loop_state_spaces, sensitivity_state_space
 from amb_dynamics.sensitivity_estimate import estimate_sensitivity
@@ -48,7 +48,7 @@ def test_multisine_injection_matches_digital_loop_model(axis):
     assert good.sum() >= 10 and m.segments >= 4
     assert np.max(np.abs(m.S[good] - S_model[good]) / np.abs(S_model[good])) < 0.05
     # the amplifier current the refusal check predicts, against the simulated steady state
-    assert predicted_peak_current(model, cfg, axis, inj) == pytest.approx(np.abs(cur[2 * P :]).max(), rel=0.05)
+    assert predicted_load(model, cfg, axis, inj).current == pytest.approx(np.abs(cur[2 * P :]).max(), rel=0.05)
 
 
 def test_predicted_slew_matches_the_simulated_amplifier():

@@ -182,11 +182,6 @@ def predicted_load(model, cfg, axis: int, injection: Injection, speed_rpm: float
     return InjectionLoad(float(spec.amplitude * np.abs(ks).max()), float(per_s * spec.amplitude * np.abs(lag).max()))
 
 
-def predicted_peak_current(model, cfg, axis: int, injection: Injection, speed_rpm: float | None = None) -> float:
-    """Steady-state peak current (A) the injection drives on its own axis (:func:`predicted_load`)."""
-    return predicted_load(model, cfg, axis, injection, speed_rpm).current
-
-
 def overload(load: InjectionLoad, cfg, current_limit: float | None = None) -> str | None:
     """Why the predicted load is too much for the amplifier (current limit, then slew limit), or None.
 
