@@ -17,8 +17,9 @@ decodes them as it decodes a ROS 2 bag):
   (radius = the air gap), for an x-y plot of the orbit inside its clearance.
 
 What it costs the loop: it reads no per-step topic of the lockstep loop (the state comes in blocks; /amb/current is
-per step and only read with ``--currents``), and its readers are best effort, so a slow view drops messages
-rather than holding the loop up.
+per step and only read with ``--currents``), its readers are best effort, so a slow view drops messages
+rather than holding the loop up, and its threads run under SCHED_IDLE (``--priority``, default ``idle``): it
+gets only the CPU time that the loop's nodes leave.
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ import time
 from collections import deque
 
 import numpy as np
+
+from amb_ros.scheduling import PRIORITIES
 
 ORBIT_SAMPLES = 200
 ORBIT_EVERY = 20  # state blocks between orbit messages (10 Hz at 5 kHz with blocks of 25)
@@ -53,6 +56,8 @@ def add_arguments(ap, prefix: str = "") -> None:
     ap.add_argument(f"--{prefix}host", default="127.0.0.1", help="address to bind (default: this machine only)")
     ap.add_argument(f"--{prefix}currents", action="store_true",
                     help="also forward /amb/current (a per-step topic: one more reader of the loop)")  # fmt: skip
+    ap.add_argument(f"--{prefix}priority", choices=PRIORITIES, default="idle",
+                    help="scheduling of its threads (default idle: SCHED_IDLE, the CPU the loop leaves)")  # fmt: skip
 
 
 def channel(topic: str, type_name: str):
@@ -158,6 +163,7 @@ def run(args) -> int:
     from amb_dynamics.config import load_config
     from amb_dynamics.errors import InputError
     from amb_ros.qos import diagnostics_qos, latched_qos
+    from amb_ros.scheduling import consumer_priority
 
     cfg = load_config(args.config, args.set)
     try:  # before DDS starts: a port in use is a one-line error
@@ -169,6 +175,7 @@ def run(args) -> int:
     signal.signal(signal.SIGINT, lambda *_: stop.append(1))
     signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
     node = rclpy.create_node("amb_live", enable_rosout=False, start_parameter_services=False)
+    scheduling = consumer_priority(args.priority)  # after the server and the node: their threads are included
     bridge = LiveBridge(cfg, args.currents)
     qos = {"/stability/unstable": latched_qos(), "/diagnostics": diagnostics_qos()}
     clock = node.get_clock()
@@ -178,7 +185,7 @@ def run(args) -> int:
             lambda raw, t=topic: bridge.on_message(t, raw, clock.now().nanoseconds),
             qos.get(topic, qos_profile_sensor_data), raw=True,
         )  # fmt: skip
-    print(f"amb-live: Foxglove WebSocket on ws://{args.host}:{server.port}", flush=True)
+    print(f"amb-live: Foxglove WebSocket on ws://{args.host}:{server.port} ({scheduling})", flush=True)
     executor = rclpy.executors.SingleThreadedExecutor()
     executor.add_node(node)
     next_repeat = time.monotonic()
@@ -225,6 +232,7 @@ def live_process(args, run_dir):
     exe = Path(sys.executable).parent / "amb-live"
     cmd = [str(exe) if exe.is_file() else "amb-live", "--port", str(args.live_port), "--host", args.live_host]
     cmd += ["--currents"] if args.live_currents else []
+    cmd += ["--priority", args.live_priority]
     cmd += ["--config", str(Path(args.config).resolve())] if args.config else []
     for item in args.set:
         cmd += ["--set", item]
