@@ -9,6 +9,7 @@ monitor's flag; amb-live runs as its own process, as ``amb-rig run --live`` star
 from __future__ import annotations
 
 import json
+import os
 import math
 import socket
 import struct
@@ -72,6 +73,9 @@ def test_foxglove_client_gets_ros2_channels_and_decodes_messages(venv_bin, tmp_p
     try:
         with spawn(cmd, tmp_path / "live.log") as live:
             assert live.wait_for(f"ws://127.0.0.1:{port}", 60), live.text()
+            tids = [int(t) for t in os.listdir(f"/proc/{live.popen.pid}/task")]
+            policies = {os.sched_getscheduler(t) for t in tids}  # every thread: DDS's and the WebSocket server's
+            assert policies == {os.SCHED_IDLE}, (policies, len(tids))  # it takes only the CPU the loop leaves
             flag_pub.publish(Bool(data=True))
             with connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"],
                          open_timeout=20) as ws:  # fmt: skip
