@@ -9,8 +9,8 @@ monitor's flag; amb-live runs as its own process, as ``amb-rig run --live`` star
 from __future__ import annotations
 
 import json
-import os
 import math
+import os
 import socket
 import struct
 import time

@@ -39,5 +39,7 @@ class DeathWatch:
             print(f"amb-rig: {cause}; stopping the run", file=sys.stderr, flush=True)
             if self.first is None:
                 self.first = cause
-                self.deadline = time.monotonic() + (self.notice_s if self.sup.find("plant") is not None else 0.0)
+                plant = self.sup.find("plant")
+                wait = plant is not None and plant.poll() is None  # a living plant reports what it saw first
+                self.deadline = time.monotonic() + (self.notice_s if wait else 0.0)
         return self.deadline is not None and time.monotonic() >= self.deadline

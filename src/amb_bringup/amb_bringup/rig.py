@@ -317,12 +317,12 @@ def wait_run(args, sup: Supervisor, collector, interrupted, watch: Watch, peer=N
     limit = args.timeout if args.timeout else default_timeout(args)
     deaths = DeathWatch(sup)  # a node's death is the run's first error, noticed at once (liveness.py)
     while interrupted.signum is None:
-        if plant is not None and plant.poll() is not None:
+        if deaths.poll():  # first: a plant killed by a signal is a death, not the run's end
+            return [deaths.first]
+        if plant is not None and plant.poll() is not None and not deaths.first:
             break
         if intruder := watch.check():
             return [intruder]
-        if deaths.poll():
-            return [deaths.first]
         if peer is not None and peer.ended():
             break  # a split run: the other side has ended (amb_bringup.split)
         if peer is not None and peer.owns_end:
@@ -344,7 +344,7 @@ def judge(sup: Supervisor, collector, interrupted) -> list[str]:
         diag = collector.get(c.spec.node) if c.spec.node else None
         if c.spec.ends_run and interrupted.signum is None and (c.stopped_by_us or code != 0):
             reason = diag["message"] if diag and diag["level"] == "ERROR" else c.last_line()
-            errors.append(f"{c.spec.name} did not finish ({describe_exit(code)}): {reason}")
+            errors.append(f"{c.spec.name} did not finish ({describe_exit(code)})" + (f": {reason}" if reason else ""))
         elif not c.spec.ends_run and not c.stopped_by_us and c.spec.required:
             errors.append(f"{c.spec.name} exited unexpectedly ({describe_exit(code)}): {c.last_line()}")
         elif c.stopped_by_us and code == -signal.SIGINT and not (c.spec.node and collector.seen(c.spec.node)):

@@ -124,8 +124,14 @@ class Supervisor:
         return next((c for c in self.children if c.spec.name == name), None)
 
     def died_early(self) -> list[Child]:
-        """Required children that exited although amb-rig did not stop them and they do not end the run."""
-        return [c for c in self.children if c.spec.required and not c.spec.ends_run and c.poll() is not None]
+        """Required children that exited although amb-rig did not stop them: those that do not end the run, and
+        the one that does (the plant) when a signal killed it (it never ends that way by itself)."""
+        out = []
+        for c in self.children:
+            code = c.poll()
+            if c.spec.required and code is not None and not c.stopped_by_us and (not c.spec.ends_run or code < 0):
+                out.append(c)
+        return out
 
     def stop_all(self) -> None:
         """Tier by tier (by ``stop_tier``): SIGINT everyone still running, then escalate; reap all."""
