@@ -133,7 +133,14 @@ def test_kill9_then_resume_equals_uninterrupted(tmp_path, serial):
     assert_same_bits(doc, serial)
 
 
-def test_sigterm_stops_within_a_second_without_orphans(tmp_path):
+@pytest.mark.parametrize(
+    ("signum", "group"),
+    [(signal.SIGTERM, False), (signal.SIGINT, True)],
+    ids=["sigterm-to-the-main-process", "ctrl-c-to-the-process-group"],
+)
+def test_a_signal_stops_the_chart_within_a_second_without_orphans(tmp_path, signum, group):
+    """SIGTERM as a supervisor sends it (to the main process only); Ctrl-C as a terminal sends it (SIGINT to the
+    whole foreground process group, workers included)."""
     cmd = chart_cmd(tmp_path, "--workers", "2", "--no-cache")
     cmd[cmd.index("28:32:3")] = "2:3:6"  # slow rows (T/Ts ~ 6000): still running when the signal comes
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
@@ -148,11 +155,14 @@ def test_sigterm_stops_within_a_second_without_orphans(tmp_path):
     assert len(workers) == 2
     time.sleep(3.0)  # the workers are computing
     t0 = time.monotonic()
-    proc.send_signal(signal.SIGTERM)
+    if group:
+        os.killpg(proc.pid, signum)
+    else:
+        proc.send_signal(signum)
     proc.wait(10)
     elapsed = time.monotonic() - t0
-    assert proc.returncode == 128 + signal.SIGTERM
-    assert "stopped by signal 15" in proc.stderr.read().decode()
+    assert proc.returncode == 128 + signum
+    assert f"stopped by signal {int(signum)}" in proc.stderr.read().decode()
     time.sleep(0.5)
     alive = [w.pid for w in workers if w.is_running() and w.status() != psutil.STATUS_ZOMBIE]
     assert alive == []
