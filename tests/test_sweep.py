@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import psutil
 import pytest
 import xarray as xr
 
@@ -107,3 +108,31 @@ def test_kill9_sweep_resumes_to_the_same_dataset(tmp_path):
     ref = xr.open_dataset(fresh / "sw" / "sweep.nc", engine="scipy").load()
     assert np.array_equal(resumed.max_abs_multiplier.values, ref.max_abs_multiplier.values)
     assert np.array_equal(resumed.error_bound.values, ref.error_bound.values)
+
+
+@pytest.mark.parametrize(("signum", "group"), [(signal.SIGTERM, False), (signal.SIGINT, True)],
+                         ids=["sigterm-to-the-main-process", "ctrl-c-to-the-process-group"])  # fmt: skip
+def test_a_signal_stops_the_sweep_within_a_second_without_orphans(tmp_path, signum, group):
+    grid = ["--frequency", "20:30:6", "--amplitude", "0:0.5:4", "--axis", "controller.rate_hz=4000,5000",
+            "--controller", "sampled", "--workers", "2"]  # fmt: skip
+    cmd = [str(BIN / "amb-dynamics"), *sweep_args(tmp_path, *grid)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+    parent = psutil.Process(proc.pid)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not list((tmp_path / "cache").glob("*/chunk-*.npz")):
+        time.sleep(0.05)
+    workers = [c for c in parent.children(recursive=True) if "spawn_main" in " ".join(c.cmdline())]
+    assert proc.poll() is None and len(workers) >= 1  # mid-sweep, its worker processes computing
+    t0 = time.monotonic()
+    if group:
+        os.killpg(proc.pid, signum)
+    else:
+        proc.send_signal(signum)
+    proc.wait(10)
+    elapsed = time.monotonic() - t0
+    assert proc.returncode == 128 + signum
+    assert f"stopped by signal {int(signum)}" in proc.stderr.read().decode()
+    time.sleep(0.5)
+    assert [w.pid for w in workers if w.is_running() and w.status() != psutil.STATUS_ZOMBIE] == []
+    assert elapsed < 1.0, elapsed
+    assert not (tmp_path / "sw" / "sweep.nc").exists()
