@@ -155,6 +155,8 @@ class PlantNode(RigNode):
         # received data: lockstep keeps samples by step index, realtime only the latest
         self.commands: dict[int, np.ndarray] = {}
         self.duplicates = 0  # lockstep: second commands for one step (rejected; the run cannot be trusted)
+        self.closed = False  # the loop has ended: what still arrives is counted, never applied
+        self.after_end = 0  # well-formed commands taken after the loop ended (counted by the final drain)
         self.rates: dict[int, np.ndarray] = {}  # lockstep: step -> [Omega, dOmega]
         self.latest_rates = (np.zeros(3), np.zeros(3))
         self.k_now = 0  # lockstep: the step being computed; realtime: the current tick
@@ -186,6 +188,9 @@ class PlantNode(RigNode):
         if got is None:
             return
         t_ns, current = got
+        if self.closed:
+            self.after_end += 1
+            return
         if self.mode == "realtime":
             answered = self.sample_index.get(t_ns)
             if answered is None:
@@ -231,10 +236,14 @@ class PlantNode(RigNode):
         if got is not None:
             self.latest_rates = (self.latest_rates[0], got[1].copy())
 
-    def drain(self) -> None:
+    def drain(self, limit: int | None = None) -> None:
+        """Take and handle every queued message (at most ``limit`` per subscription: a publisher that keeps
+        sending cannot hold the final drain forever)."""
         for sub, handler in self.handlers:
-            while (raw := Waiter.take(sub)) is not None:
+            n = 0
+            while (limit is None or n < limit) and (raw := Waiter.take(sub)) is not None:
                 handler(raw)
+                n += 1
 
     # -- physics glue ----------------------------------------------------------------------------------
     def publish_outputs(self, k: int, stamp_ns: int) -> None:
@@ -333,6 +342,10 @@ class PlantNode(RigNode):
         except RunFailed as exc:
             self.failure, code = str(exc), 3
         self.t_wall1 = time.monotonic()
+        self.closed = True
+        self.drain(
+            limit=2 * self.p["qos_depth"]
+        )  # what is still queued is counted (a foreign burst, the answer to the last sample), not applied
         self.publish_state(self.state_block.flush())  # the samples of the last, shorter block
         self.publish_aux(self.aux_block.flush())
         self.publish_contacts()
@@ -391,6 +404,7 @@ class PlantNode(RigNode):
             }
         )
         out.update(contact_summary(self.rig.contact.events))
+        out["commands after the end"] = str(self.after_end)
         out["spin speed (rpm)"] = f"{self.rig.spin_speed() * 30 / np.pi:.6g}"
         out.update(self.report.values())
         if self.mode == "lockstep":

@@ -36,12 +36,13 @@ class PublisherMatches:
         self.total: dict[str, int] = {}
         self.expected: dict[str, int] = {}
         self.names: dict[str, list[str]] = {}
+        self.own: dict[str, set] = {}  # endpoint GIDs of the run's own publishers (matched up to ``expected``)
         self._events: dict[str, object] = {}
 
     def watch(self, subscription, expected: int = 1) -> None:
         """Count the publishers ``subscription`` matches; a run has ``expected`` of them on its topic."""
         topic = subscription.topic_name
-        self.total[topic], self.expected[topic], self.names[topic] = 0, expected, []
+        self.total[topic], self.expected[topic], self.names[topic], self.own[topic] = 0, expected, [], set()
         with subscription.handle:
             self._events[topic] = _rclpy.EventHandle(
                 subscription.handle, QoSSubscriptionEventType.RCL_SUBSCRIPTION_MATCHED
@@ -57,11 +58,16 @@ class PublisherMatches:
 
     def on_matched(self, topic: str, info) -> None:
         self.total[topic] = max(self.total[topic], int(info.total_count))
-        if self.total[topic] > self.expected[topic]:  # name who is there now (the intruder may have left)
-            for endpoint in self.node.get_publishers_info_by_topic(topic):
-                name = full_name(endpoint.node_namespace, endpoint.node_name)
-                if name not in self.names[topic]:
-                    self.names[topic].append(name)
+        endpoints = self.node.get_publishers_info_by_topic(topic)
+        if self.total[topic] <= self.expected[topic]:  # the run's own: remembered by GID, never named as foreign
+            self.own[topic].update(bytes(e.endpoint_gid) for e in endpoints)
+            return
+        for endpoint in endpoints:  # name who is there now (the intruder may have left)
+            if bytes(endpoint.endpoint_gid) in self.own[topic]:
+                continue
+            name = full_name(endpoint.node_namespace, endpoint.node_name)
+            if name not in self.names[topic]:
+                self.names[topic].append(name)
 
     def foreign(self, topic: str) -> int:
         """Publishers of ``topic`` matched beyond the expected ones."""
