@@ -67,3 +67,26 @@ def test_record_on_a_full_disk_is_one_line_and_an_error_row(small_disk, tmp_path
     last = text.strip().splitlines()[-1]
     assert last == f"amb-bag record: {bag}: No space left on device; the bag is incomplete, run `amb-bag check`"
     assert "Traceback" not in text
+
+
+@pytest.mark.ros
+def test_a_rig_run_recording_to_a_full_disk_fails_with_the_recorder_row_an_error(small_disk, tmp_path, venv_bin):
+    """amb-rig run --bag on a disk that fills up: the run fails (exit 1), and the recorder's row is an ERROR that
+    says what reached the disk and what was lost, never ``OK ... lost 0``."""
+    from helpers import rig_json
+
+    bag = small_disk / "bag"
+    cmd = [str(venv_bin / "amb-rig"), "run", "--json", "--duration", "4", "--no-monitor", "--bag", str(bag),
+           "--log-dir", str(tmp_path / "logs")]  # fmt: skip
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1, proc.stdout[-3000:] + proc.stderr[-3000:]
+    s = rig_json(proc.stdout)
+    rec = s["nodes"]["recorder"]
+    assert rec["level"] == "ERROR", rec
+    values = rec["values"]
+    assert values["write error"].startswith("No space left on device"), values
+    received, on_disk = int(values["received"]), int(values["messages on disk"])
+    assert 0 <= on_disk < received  # a 1 MiB disk cannot hold a 4 s lockstep run (20,000 steps per topic)
+    assert f"lost at least {received - on_disk}" in rec["message"], rec
+    assert any("recorder" in e for e in s["errors"]), s["errors"]
+    assert "Traceback" not in proc.stderr
