@@ -51,3 +51,37 @@ def test_future_stamp_and_random_flood_are_rejected_and_the_stream_goes_on():
         ctl.destroy_node()
     finally:
         rclpy.try_shutdown()
+
+
+def test_samples_without_this_runs_token_are_foreign_and_never_answered():
+    """The controller answers only samples that carry its run's token (header.frame_id), as the plant takes only
+    commands that do: an intruder's well-formed sample for the current step, without a token or with another
+    run's, is counted as foreign, and the real sample of that step is still answered once."""
+    import rclpy
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+
+    from amb_controller.node import ControllerNode
+    from amb_ros.runtime import StopFlag
+
+    rclpy.init(args=["--ros-args", "-p", "run_token:=r0a1b2c3"])
+    try:
+        ctl = ControllerNode(StopFlag())
+        assert ctl.token == "r0a1b2c3"
+
+        def sample(k: int, token: str, y: float = 1e-5) -> bytes:
+            msg = JointState(name=["amb1_y", "amb1_z", "amb5_y", "amb5_z"], position=[y] * 4)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k * ctl.Ts_ns, 10**9)
+            msg.header.frame_id = token
+            return serialize_message(msg)
+
+        for k in range(5):
+            ctl.on_sample(sample(k, "", 1e-3))  # an intruder's, first
+            ctl.on_sample(sample(k, "r0a1b2c4", 1e-3))  # another run's
+            ctl.on_sample(sample(k, "r0a1b2c3"))  # the plant's
+        values = ctl.values()
+        assert values["foreign /amb/displacement"] == "10"
+        assert values["samples answered"] == "5" and values["samples lost"] == "0"
+        ctl.destroy_node()
+    finally:
+        rclpy.try_shutdown()
