@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from amb_dynamics.recorded import MAX_TRAJECTORY_BYTES
 from helpers import cli_bag as _bag
 from helpers import cli_dyn as _dyn
 from helpers import cli_monitor as _monitor
@@ -199,7 +200,52 @@ CASES = [
     ("rig-duration-nan", _rig, lambda t: ["run", "--duration", "nan"], ["--duration"]),
     ("rig-lock-wait-negative", _rig, lambda t: ["run", "--lock-wait", "-1"], ["--lock-wait", ">= 0"]),
     ("rig-bag-exists", _rig, lambda t: ["run", "--bag", str(t)], ["--bag", "already exists"]),
+    (
+        "rig-config-not-utf8",
+        _rig,
+        lambda t: ["run", "--config", str(_file(t, "bad.yaml", b"a: \xff\xfe\n"))],
+        ["bad.yaml", "line 1", "UTF-8"],
+    ),
+    (
+        "rig-recorded-dev-zero",  # before: read without end (24 GB in 50 s), then the OOM killer
+        _rig,
+        lambda t: ["run", "--param", "base_motion:kind=recorded", "--param", "base_motion:recorded_file=/dev/zero"],
+        ["/dev/zero", "not a regular file"],
+    ),
+    (
+        "rig-recorded-oversized",  # refused by its size, before a byte is read
+        _rig,
+        lambda t: [
+            "run",
+            "--param",
+            "base_motion:kind=recorded",
+            "--param",
+            f"base_motion:recorded_file={_sparse(t, 'huge.csv', MAX_TRAJECTORY_BYTES + 1)}",
+        ],
+        ["huge.csv", f"larger than the {MAX_TRAJECTORY_BYTES}-byte limit"],
+    ),
+    (
+        "rig-recorded-secret-line",  # the line is named by number; its content (a password hash) never echoed
+        _rig,
+        lambda t: [
+            "run",
+            "--param",
+            "base_motion:kind=recorded",
+            "--param",
+            f"base_motion:recorded_file={_file(t, 'shadow', SECRET)}",
+        ],
+        ["shadow", "line 2"],
+    ),
 ]
+
+SECRET = b"t,roll\nroot:$6$Zq3v9Xk1$hVt0ecretHash:19000:0:99999:7:::\n"
+
+
+def _sparse(tmp: Path, name: str, size: int) -> Path:
+    path = tmp / name
+    with open(path, "wb") as f:
+        f.truncate(size)
+    return path
 
 
 def _file(tmp: Path, name: str, data: bytes) -> Path:
@@ -222,7 +268,7 @@ def test_bad_input_is_one_line_and_exit_2(runner, make, words, tmp_path, capsys,
     err = capsys.readouterr().err
     assert code == 2, (code, err)
     assert err.endswith("\n") and err.count("\n") == 1, err
-    assert "Traceback" not in err
+    assert "Traceback" not in err and "root:" not in err and "ecretHash" not in err  # no file content echoed
     for word in words:
         assert word in err, (word, err)
     assert sorted(p.name for p in work.iterdir()) == before  # nothing written (no bag, no PNG, no JSON)

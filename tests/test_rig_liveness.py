@@ -39,5 +39,6 @@ def test_kill_9_of_a_node_is_noticed_and_named(tmp_path, venv_bin, name):
     assert code == 1, text
     s = rig_json(text)
     assert s["errors"][0] == f"{name} died (killed by SIGKILL)"
+    assert not [e for e in s["errors"][1:] if e.startswith(name)], s["errors"]  # said once
     assert s["verdict"]["line"].startswith(f"verdict: FAILED: {name} died (killed by SIGKILL)")
     assert wait_gone(pids.values()) == []

@@ -166,7 +166,26 @@ def prepare(args) -> tuple[dict, dict[str, dict]]:
     except ValueError as exc:
         raise InputError(str(exc)) from None
     check_parameters(common, per, started_nodes(args), specs)
+    if "base_motion" in started_nodes(args):
+        check_recorded_motion({**common, **per.get("base_motion", {})})
     return common, per
+
+
+def check_recorded_motion(given: dict) -> None:
+    """A recorded base motion is read and checked here, before any process starts, as base_motion will read it
+    (bounded, regular files only; a bad file is one line naming the file and line, exit 2)."""
+    from amb_dynamics.config import load_config
+    from amb_dynamics.recorded import load_recorded
+
+    kind = (
+        given.get("kind")
+        or load_config(given.get("config_file") or None, list(given.get("set") or [])).base_motion.kind
+    )
+    if kind != "recorded":
+        return
+    if not given.get("recorded_file"):
+        raise InputError("base_motion: parameter 'recorded_file' is required for kind recorded")
+    load_recorded(given["recorded_file"], given.get("recorded_smoothing") or None)
 
 
 def effective(args, common: dict, per: dict[str, dict]) -> dict:

@@ -227,7 +227,8 @@ def run(args, cfg, lock) -> int:
         time.sleep(0.2)  # final diagnostics were acknowledged before the nodes exited; let the thread store them
         collector.close()
         rclpy.try_shutdown()
-    errors += judge(sup, collector, interrupted)
+    dead = tuple(e.split(" died (")[0] + " " for e in errors if " died (" in e)  # named by the death watch
+    errors += [e for e in judge(sup, collector, interrupted) if not (dead and e.startswith(dead))]  # say it once
     errors += watch.final()  # a publisher matched in the run's last moments
     errors, notes = split.forgive_final_loss(errors, peer)
     motion = (args.motion or cfg.base_motion.kind, args.amplitude, args.frequency)
