@@ -9,9 +9,11 @@ for minutes, or was accepted.
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from amb_dynamics.recorded import MAX_TRAJECTORY_BYTES
@@ -84,6 +86,12 @@ CASES = [
         _dyn,
         lambda t: ["floquet", "--motion", "pitch", "--amplitude", "0.3", "--frequency", "inf"],
         ["--frequency"],
+    ),
+    (
+        "floquet-1mhz",
+        _dyn,
+        lambda t: ["floquet", "--motion", "pitch", "--amplitude", "0.3", "--frequency", "6.283e6"],
+        ["--frequency", "<= 100000"],
     ),
     (
         "floquet-sampled-1mhz",
@@ -295,3 +303,20 @@ def test_set_error_of_a_valid_file_names_the_override_not_the_file(tmp_path):
     text = str(exc.value)
     assert text.startswith("--set shaft.elements=0 (on ") and "elements" in text
     assert "rate_hz" not in text
+
+
+def test_floquet_at_1_hz_writes_strict_json_with_finite_multipliers(capsys):
+    """Before: ``floquet`` of a 1 Hz base motion printed NaN into its JSON.  Parsed here with NaN/Infinity refused."""
+    from amb_dynamics import cli
+
+    assert (
+        cli.main(["floquet", "--motion", "pitch", "--amplitude", "0.3", "--frequency", str(2 * math.pi), "--json"]) == 0
+    )
+
+    def refuse(constant):
+        raise ValueError(f"{constant} in the JSON")
+
+    doc = json.loads(capsys.readouterr().out, parse_constant=refuse)
+    mu = np.array(doc["multipliers"], dtype=float)
+    assert mu.shape[1] == 2 and np.isfinite(mu).all() and doc["converged"] is True
+    assert doc["max_abs_multiplier"] == pytest.approx(np.hypot(mu[:, 0], mu[:, 1]).max(), rel=1e-12)
