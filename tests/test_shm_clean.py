@@ -122,3 +122,28 @@ def test_kill_9_leftovers_are_cleaned_and_a_live_process_keeps_its_segments():
                 except subprocess.TimeoutExpired:
                     p.kill()
                     p.wait()
+
+
+@pytest.mark.ros
+def test_a_killed_rigs_segments_are_gone_after_the_next_amb_rig_start(tmp_path, venv_bin):
+    """kill -9 of a whole amb-rig run (amb-rig and every node) leaves its Fast DDS segments in /dev/shm; the next
+    ``amb-rig run`` removes them when it starts (rig.py calls clean_stale_shm before its first node)."""
+    from helpers import started_pids, wait_gone
+    from procs import spawn
+
+    cmd = [str(venv_bin / "amb-rig"), "run", "--duration", "100", "--no-monitor", "--log-dir", str(tmp_path / "a")]
+    with spawn(cmd, tmp_path / "killed.log") as rig:
+        assert rig.wait_for("started plant", 60), rig.text()
+        time.sleep(3.0)  # the loop runs: every node has its segments
+        pids = started_pids(rig.text())
+        left = set().union(*(_locked_by(p) for p in pids.values()))
+        for pid in [rig.popen.pid, *pids.values()]:
+            os.kill(pid, signal.SIGKILL)
+        assert wait_gone([rig.popen.pid, *pids.values()]) == []
+    own = {n for n in left if not n.startswith("fastrtps_port")}  # port files are shared by the whole domain
+    assert len(own) >= 2 * len(pids) and own <= _segments()  # a segment and its lock file per node, left behind
+    time.sleep(2.5)  # older than clean_stale_shm's min_age_s
+    nxt = [str(venv_bin / "amb-rig"), "run", "--duration", "0.2", "--no-monitor", "--log-dir", str(tmp_path / "b")]
+    done = subprocess.run(nxt, capture_output=True, text=True, timeout=180)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert not (own & _segments()), sorted(own & _segments())
