@@ -23,7 +23,7 @@ def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--steps", type=int, default=1000)
     p.add_argument("--rate", type=float, default=1000.0, help="steps/s; 0 = flat out")
-    p.add_argument("--diag-every", type=int, default=100)
+    p.add_argument("--diag-every", type=int, default=100, help="steps between /diagnostics (0 = none at all)")
     p.add_argument("--log", type=Path)
     p.add_argument("--wait-subscribers", type=float, default=0.0, help="wait up to S s for a subscriber per topic")
     p.add_argument("--best-effort", action="store_true")
@@ -84,7 +84,8 @@ def main() -> None:
             delay = t0 + (k + 1) / args.rate - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
-    publish_diagnostics(args.steps)
+    if args.diag_every:  # 0: a publisher that never reports a count
+        publish_diagnostics(args.steps)
     for pub in pubs.values():
         pub.wait_for_all_acked(Duration(seconds=5))
     if args.log:
