@@ -86,7 +86,7 @@ def test_a_briefly_matched_publisher_is_counted_and_fails_the_run(tmp_path, venv
 def test_a_future_stamp_and_a_flood_with_the_run_token_leave_the_loop_unharmed(tmp_path, venv_bin, seed_config_path):
     """Over DDS, during a lockstep run: a publisher that knows the run token (a misconfigured bridge) sends one
     /amb/displacement sample stamped t = 1000 s, then a flood of 4,000 samples with random stamps as fast as rclpy
-    publishes them (about 4,000/s here: the issue's 10k/s needs a faster publisher than Python).
+    publishes them (about 4,000/s here; 10k/s would need a faster publisher than Python's).
     Before: the future stamp wedged the controller (it counted ~5 million samples lost and rejected every real
     sample).  Now the controller rejects each as out of its window, answers every real sample (none lost), and
     amb-rig stops the run naming the intruder."""
