@@ -12,13 +12,14 @@ import importlib
 import json
 import os
 import sys
+import time
 from pathlib import Path
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # DDS stays on this machine
 os.environ.pop("ROS_STATIC_PEERS", None)
 sys.path.insert(0, str(Path(__file__).parent))
 
-from report import PAGE, set_source, write_page
+from report import PAGE, record, set_source, write_page
 
 from amb_dynamics.threads import single_thread_env  # imports no numpy
 from amb_ros.env import ensure_localhost_dds
@@ -50,14 +51,23 @@ def main() -> int:
     ensure_localhost_dds()
     results, failed = {}, []
     only = args.modules or list(BENCHMARKS)
+    minutes = {}
     for name in only:
         print(f"\n=== {name} ===", flush=True)
         set_source(name)
+        t0 = time.monotonic()
         try:
             results[name] = importlib.import_module(name).main()
         except Exception as exc:  # a failing benchmark must not hide the others; reported and exit non-zero
             failed.append(name)
             print(f"{name} FAILED: {type(exc).__name__}: {exc}", file=sys.stderr)
+        minutes[name] = (time.monotonic() - t0) / 60.0
+    set_source("")
+    for name, m in minutes.items():
+        record(f"wall time of {name}", [m], "min", command=f".venv/bin/python benchmarks/run_all.py {name}")
+    if not args.modules:
+        record("wall time of every benchmark (make bench, without its install)", [sum(minutes.values())], "min",
+               goal="< 30", command="make bench")  # fmt: skip
     out = Path("out/bench.json")
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps(results, indent=1, default=float))
