@@ -96,11 +96,11 @@ def test_nothing_moved_says_why_and_saturation_is_reported():
                          _args("--fail-on", "saturation")).exit_code == EXIT_FAIL_ON  # fmt: skip
 
 
-def test_hooks_touchdown_and_foreign_commands():
+def test_touchdown_is_a_result_and_duplicate_commands_a_failure():
     v = judge_verdict(_summary({"touchdown contacts": "2"}, {}, dict(STABLE_MON)), _args("--fail-on", "touchdown"))
     assert v.result == "touchdown" and v.exit_code == EXIT_FAIL_ON
-    v = judge_verdict(_summary({"foreign commands applied": "1"}, {}, dict(STABLE_MON)), _args())
-    assert v.exit_code == EXIT_FAILED and "foreign commands" in v.line
+    v = judge_verdict(_summary({"duplicate commands": "1"}, {}, dict(STABLE_MON)), _args())
+    assert v.exit_code == EXIT_FAILED and "duplicate commands" in v.line
 
 
 def test_unknown_fail_on_result_is_refused():

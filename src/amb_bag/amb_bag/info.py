@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import datetime as dt
 
-from amb_ros.report_keys import read_vibration
+from amb_ros.diag_keys import read_vibration
 
 from .loss import CUSTOM_KEY, DIAGNOSTICS_TOPIC, format_table
 from .metadata import custom_json
@@ -49,7 +49,7 @@ def bag_info(path) -> dict:
 
 def recorded_vibration(bag: Bag) -> dict | None:
     """The ISO 14839-2 grade of the run's last second, from the plant's last report on /diagnostics in the bag
-    (amb_ros.report_keys); None if the bag has no such report."""
+    (amb_ros.diag_keys); None if the bag has no such report."""
     last = None
     for values in reports(bag, PLANT_STATUS):
         if (vib := read_vibration(values)) is not None:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import time
 
 from amb_ros import messages as m
+from amb_ros.diag_keys import per_topic, topics_with
 from amb_ros.matches import full_name
 
 PROBE_S = 0.3  # graph watch before a run starts
@@ -98,10 +99,10 @@ class Watch:
         found = {}
         for name in self.LOOP_NODES if self.collector is not None else ():
             values = (self.collector.get(name) or {}).get("values") or {}
-            for key, count in values.items():
-                if key.startswith("foreign publishers ") and count != "0":
-                    topic = key[len("foreign publishers ") :]
-                    found[topic] = values.get(f"publishers seen {topic}", "none left to name").split(", ")
+            for topic in topics_with(values, "foreign publishers"):
+                if per_topic("foreign publishers", topic).read(values):
+                    seen = per_topic("publishers seen", topic).read(values) or "none left to name"
+                    found[topic] = seen.split(", ")
         return found
 
     def _report(self, found: dict[str, list[str]]) -> str | None:

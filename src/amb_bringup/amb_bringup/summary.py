@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-from amb_ros.report_keys import read_peaks, read_vibration
+from amb_ros.diag_keys import Controller, Key, Monitor, Plant, read_peaks, read_vibration
 
 from .supervisor import Child, describe_exit
 
 
-def _num(values: dict, key: str, default=None):
-    try:
-        return float(values[key])
-    except (KeyError, ValueError):
-        return default
+def _num(values: dict, key: Key | str, default=None):
+    """A numeric value as float (the summary's JSON numbers), ``default`` if absent or malformed."""
+    v = (key if isinstance(key, Key) else Key(key)).read(values)
+    return default if v is None or isinstance(v, bool | str) else float(v)
 
 
 def build_summary(run: dict, children: list[Child], collector, errors: list[str]) -> dict:
@@ -33,29 +32,32 @@ def build_summary(run: dict, children: list[Child], collector, errors: list[str]
     out = {"ok": not errors, "errors": list(errors), **run, "nodes": nodes}
     plant = nodes.get("plant", {}).get("values", {})
     if plant:
-        out["steps"] = int(_num(plant, "steps", 0))
-        out["simulated_s"] = _num(plant, "simulated time (s)")
-        out["wall_s"] = _num(plant, "wall time (s)")
-        out["steps_per_s"] = _num(plant, "steps per second")
-        gap = _num(plant, "air gap (m)")
+        out["steps"] = int(_num(plant, Plant.steps, 0))
+        out["simulated_s"] = _num(plant, Plant.simulated_time)
+        out["wall_s"] = _num(plant, Plant.wall_time)
+        out["steps_per_s"] = _num(plant, Plant.steps_per_second)
+        gap = _num(plant, Plant.air_gap)
         out["air_gap_m"] = gap
         out["peak_displacement"] = read_peaks(plant)
         if (vib := read_vibration(plant)) is not None:  # ISO 14839-2 grade of the run's last second (its end)
             out["vibration"] = vib
     ctl = nodes.get("controller", {}).get("values", {})
     if ctl:
-        keys = ("samples answered", "samples lost", "saturated samples", "max current (A)", "ticks",
-                "missed deadlines", "skipped ticks", "sensor losses")  # fmt: skip
-        stats = {k: _num(ctl, k) for k in keys if k in ctl}
+        keys = (Controller.samples_answered, Controller.samples_lost, Controller.saturated_samples,
+                Controller.max_current, Controller.ticks, Controller.missed_deadlines, Controller.skipped_ticks,
+                Controller.sensor_losses)  # fmt: skip
+        stats = {k.text: _num(ctl, k) for k in keys if k.text in ctl}
         stats.update({k: _num(ctl, k) for k in ctl if k.startswith(("compute ", "period error "))})
         out["controller"] = stats
     mon = nodes.get("monitor")
     if mon:
         v = mon["values"]
-        out["stability"] = {"verdict": v.get("verdict", "none"), "unstable": v.get("unstable") == "true",
-                            "rho": _num(v, "rho"), "rho_std": _num(v, "rho std"),
-                            "periods_used": _num(v, "periods used"), "flag_raised_at_s": _num(v, "flag raised at (s)"),
-                            "model_rho": _num(v, "model rho"), "model_mismatch": v.get("model mismatch") == "true",
+        out["stability"] = {"verdict": Monitor.verdict.read(v) or "none", "unstable": Monitor.unstable.read(v) is True,
+                            "rho": _num(v, Monitor.rho), "rho_std": _num(v, Monitor.rho_std),
+                            "periods_used": _num(v, Monitor.periods_used),
+                            "flag_raised_at_s": _num(v, Monitor.flag_raised_at),
+                            "model_rho": _num(v, Monitor.model_rho),
+                            "model_mismatch": Monitor.model_mismatch.read(v) is True,
                             "message": mon["message"]}  # fmt: skip
     return out
 

@@ -4,11 +4,11 @@ A *result* (stable, UNSTABLE, touchdown, saturation, nothing moved) is what the 
 user named it in ``--fail-on`` (exit 3).  A *failure* is a run whose data cannot be trusted: a node died or
 reported ERROR, any sample lost in lockstep, realtime command losses above ``--max-command-loss`` (a fraction of
 the steps, default 1 %), time at zero current above ``--max-zero-current`` (default 0 s: the rotor was not
-levitated), foreign commands applied, or ``--no-plant`` in lockstep with no rig answering: exit 1.
+levitated), duplicate commands for one step (a second publisher whose command may have been applied), or
+``--no-plant`` in lockstep with no rig answering: exit 1.
 
-Inputs are the nodes' final /diagnostics values as collected in the summary (strings, as on the wire); keys a
-node does not report are simply not judged.  Hooks for keys other nodes are adding: the plant's
-``touchdown contacts`` (a touchdown result) and ``foreign commands applied`` (a failure).
+Inputs are the nodes' final /diagnostics values as collected in the summary (strings, as on the wire), read
+through the typed schema of amb_ros.diag_keys; keys a node does not report are simply not judged.
 """
 
 from __future__ import annotations
@@ -16,6 +16,8 @@ from __future__ import annotations
 import argparse
 import math
 from dataclasses import dataclass, field
+
+from amb_ros.diag_keys import Controller, Key, Monitor, Plant, per_topic
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_FAIL_ON = 0, 1, 2, 3
 FAIL_ON_CHOICES = ("unstable", "touchdown", "saturation", "nothing-moved")
@@ -67,12 +69,10 @@ class Verdict:
                 "exit_code": self.exit_code}  # fmt: skip
 
 
-def _f(values: dict, key: str) -> float | None:
-    try:
-        v = float(values[key])
-    except (KeyError, TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
+def _f(values: dict, key: Key) -> float | None:
+    """A numeric key's value, None if absent, malformed or not finite."""
+    v = key.read(values)
+    return v if isinstance(v, int | float) and math.isfinite(v) else None
 
 
 def _values(summary: dict, node: str) -> dict:
@@ -83,11 +83,9 @@ def taint(summary: dict) -> list[str]:
     """Foreign commands that reached the plant (a failure, or with ``--tainted-ok`` a TAINTED mark)."""
     plant = _values(summary, "plant")
     out = []
-    if duplicates := _f(plant, "duplicate commands"):
+    if duplicates := _f(plant, Plant.duplicate_commands):
         out.append(f"{duplicates:.0f} duplicate commands for one step reached the plant: a second publisher on "
                    "/amb/current, and which command was applied cannot be told")  # fmt: skip
-    if foreign := _f(plant, "foreign commands applied"):
-        out.append(f"{foreign:.0f} foreign commands were applied to the plant (see the intruders in the log)")
     return out
 
 
@@ -95,12 +93,12 @@ def trust_failures(summary: dict, args) -> list[str]:
     """Reasons the run's data cannot be trusted (beyond the node errors amb-rig already found)."""
     plant, ctl = _values(summary, "plant"), _values(summary, "controller")
     out = [] if getattr(args, "tainted_ok", False) else taint(summary)
-    lost = _f(ctl, "samples lost")
+    lost = _f(ctl, Controller.samples_lost)
     if args.mode == "lockstep" and lost:
         out.append(f"the controller lost {lost:.0f} displacement samples in lockstep (any loss there is a failure)")
-    steps = _f(plant, "steps")
+    steps = _f(plant, Plant.steps)
     rate = summary.get("rate_hz") or 0.0
-    held, zeroed = _f(plant, "late commands held (samples)"), _f(plant, "zero current (samples)")
+    held, zeroed = _f(plant, Plant.late_commands_held), _f(plant, Plant.zero_current)
     if steps and held is not None and zeroed is not None:
         fraction = (held + zeroed) / steps
         if fraction > args.max_command_loss:
@@ -108,7 +106,7 @@ def trust_failures(summary: dict, args) -> list[str]:
                        f"({100 * fraction:.2f} % > {100 * args.max_command_loss:g} %)")  # fmt: skip
     if zeroed and rate and zeroed / rate > args.max_zero_current:
         out.append(f"{zeroed / rate:.3g} s at zero current (rotor not levitated; limit {args.max_zero_current:g} s)")
-    if args.no_plant and args.mode == "lockstep" and ctl and not _f(ctl, "samples answered"):
+    if args.no_plant and args.mode == "lockstep" and ctl and not _f(ctl, Controller.samples_answered):
         out.append("--no-plant: no rig answered; the controller waited for /amb/displacement and got no sample")
     return out
 
@@ -117,36 +115,38 @@ def _result(summary: dict, args) -> tuple[str, str, list[str]]:
     """(result, text, warnings) from the monitor, the plant and the controller."""
     plant, mon, ctl = _values(summary, "plant"), _values(summary, "monitor"), _values(summary, "controller")
     warnings = []
-    if lost := _f(mon, "samples lost"):
+    if lost := _f(mon, Monitor.samples_lost):
         warnings.append(f"the monitor lost {lost:.0f} samples")
-    if foreign_samples := _f(ctl, "samples out of window"):
+    if foreign_samples := _f(ctl, Controller.samples_out_of_window):
         warnings.append(
             f"the controller rejected {foreign_samples:.0f} samples stamped far ahead of the run (foreign?)"
         )
     for who, values, topic, what in (("plant", plant, "/amb/current", "commands"),
                                      ("controller", ctl, "/amb/displacement", "samples")):  # fmt: skip
-        if n := _f(values, f"foreign {topic}"):  # well-formed, another run token: not applied (docs/topics.md)
+        if n := _f(values, per_topic("foreign", topic)):  # well-formed, another run token: not applied (docs/topics.md)
             warnings.append(f"the {who} rejected {n:.0f} {what} with another run token (another run or an intruder "
                             "on this ROS_DOMAIN_ID)")  # fmt: skip
-    if mon.get("model mismatch") == "true":
-        warnings.append(f"the stability estimate disagrees with the config's model (model rho {mon.get('model rho')}): "
+    if Monitor.model_mismatch.read(mon) is True:
+        model_rho = mon.get(Monitor.model_rho.text)
+        warnings.append(f"the stability estimate disagrees with the config's model (model rho {model_rho}): "
                         "is the rig the config?")  # fmt: skip
     if foreign := summary.get("foreign_diagnostics"):
         names = ", ".join(f"{k} ({n})" for k, n in sorted(foreign.items()))
         warnings.append(f"ignored /diagnostics from processes outside this run: {names}")
-    gap = _f(plant, "air gap (m)")
+    gap = _f(plant, Plant.air_gap)
     peaks = [p["m"] for p in (summary.get("peak_displacement") or {}).values() if p.get("m") is not None]
     peak = max(peaks) if peaks else None
     peak_text = f"; peak {peak:.3g} m = {peak / gap:.3g} x air gap" if peak is not None and gap else ""
-    touchdowns = _f(plant, "touchdown contacts")  # the plant node's count of backup-bearing contacts
+    touchdowns = _f(plant, Plant.touchdown_contacts)  # the plant node's count of backup-bearing contacts
     if touchdowns:
         return "touchdown", f"TOUCHDOWN ({touchdowns:.0f} contact events){peak_text}", warnings
-    rho, period = _f(mon, "rho"), _f(mon, "period (s)")
-    if lost and mon.get("verdict") in ("stable", "marginal", "unstable"):  # gapped data: no verdict from them
-        said = "UNSTABLE" if mon.get("unstable") == "true" else mon.get("verdict")
+    rho, period = _f(mon, Monitor.rho), _f(mon, Monitor.period)
+    if lost and Monitor.verdict.read(mon) in ("stable", "marginal", "unstable"):  # gapped data: no verdict from them
+        said = "UNSTABLE" if Monitor.unstable.read(mon) is True else Monitor.verdict.read(mon)
         return "unknown", (f"stability withheld: the monitor lost {lost:.0f} samples (its estimate on gapped data "
                            f"said {said}, rho = {rho:.4f})") + peak_text, warnings  # fmt: skip
-    if mon.get("unstable") == "true" or (rho is not None and rho > 1.0 and mon.get("verdict") == "unstable"):
+    said_unstable = Monitor.verdict.read(mon) == "unstable"
+    if Monitor.unstable.read(mon) is True or (rho is not None and rho > 1.0 and said_unstable):
         text = "UNSTABLE"
         if rho is not None:
             text += f": rho = {rho:.4f}"
@@ -156,7 +156,7 @@ def _result(summary: dict, args) -> tuple[str, str, list[str]]:
                 if sigma > 0 and peak and gap and peak < gap:
                     text += f", clearance reached in ~{math.log(gap / peak) / sigma:.3g} s from the peak so far"
         return "unstable", text + peak_text, warnings
-    if peak == 0.0 or (mon.get("verdict") == "insufficient_excitation"):
+    if peak == 0.0 or (Monitor.verdict.read(mon) == "insufficient_excitation"):
         why = summary.get("nodes", {}).get("monitor", {}).get("message") or "no displacement"
         if peak == 0.0:
             why = "every displacement stayed 0 (base at rest and no --initial-displacement?)"
@@ -172,7 +172,7 @@ def _result(summary: dict, args) -> tuple[str, str, list[str]]:
 
 def _saturation(summary: dict, args) -> str | None:
     plant = _values(summary, "plant")
-    steps, saturated = _f(plant, "steps"), _f(plant, "saturated steps")
+    steps, saturated = _f(plant, Plant.steps), _f(plant, Plant.saturated_steps)
     if steps and saturated and saturated / steps > args.saturation_limit:
         return f"; current SATURATED in {saturated:.0f} of {steps:.0f} steps"
     return None

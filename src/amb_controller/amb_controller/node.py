@@ -31,6 +31,7 @@ from amb_dynamics.amb import DiscretePIDCoefficients
 from amb_dynamics.errors import InputError
 from amb_dynamics.rig_loop import RigController
 from amb_dynamics.structure import AMBGains, channel_names
+from amb_ros.diag_keys import Controller
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.live_params import LiveParams, param_at_spec
 from amb_ros.loop import Waiter
@@ -296,17 +297,17 @@ class ControllerNode(RigNode):
         out.update(
             {
                 "sensor state": self.sensor_state,
-                "samples answered": str(self.answered),
-                "samples lost": str(self.lost),
-                "samples out of window": str(self.out_of_window),
+                Controller.samples_answered.text: str(self.answered),
+                Controller.samples_lost.text: str(self.lost),
+                Controller.samples_out_of_window.text: str(self.out_of_window),
                 "restarts": str(self.restarts),
-                "saturated samples": str(self.saturated),
-                "max current (A)": f"{self.max_current:.6g}",
+                Controller.saturated_samples.text: str(self.saturated),
+                Controller.max_current.text: f"{self.max_current:.6g}",
                 "current limit (A)": f"{self.p['current_limit']:.6g}",
                 "excitation": self.excitation.kind if self.excitation.active else "none",
                 "gain set": self.gain_set,
                 "safe gains from t (s)": "-" if self.safe_switch_t is None else f"{self.safe_switch_t:.6g}",
-                "sensor losses": str(self.sensor_losses),
+                Controller.sensor_losses.text: str(self.sensor_losses),
                 "zero-current ticks": str(self.safe_ticks),
                 "wall time (s)": f"{time.monotonic() - self.t_wall0:.3f}",
             }
@@ -315,8 +316,10 @@ class ControllerNode(RigNode):
         out.update(self.injection.values())
         out.update(self.compute.summary("compute"))
         if self.mode == "realtime":
-            out.update({"trigger": self.p["trigger"], "ticks": str(self.ticks), "missed deadlines": str(self.missed),
-                        "skipped ticks": str(self.skipped), "repeated samples": str(self.repeated)})  # fmt: skip
+            out.update({"trigger": self.p["trigger"], Controller.ticks.text: str(self.ticks),
+                        Controller.missed_deadlines.text: str(self.missed),
+                        Controller.skipped_ticks.text: str(self.skipped),
+                        "repeated samples": str(self.repeated)})  # fmt: skip
             out.update(self.period_error.summary("period error"))
             out.update(self.latency.summary("sample-to-command latency"))
         return out

@@ -40,6 +40,7 @@ from amb_dynamics.fe import dof_index
 from amb_dynamics.rig_loop import levitated_state
 from amb_dynamics.rig_plant import RigPlant
 from amb_dynamics.structure import build_structure
+from amb_ros.diag_keys import Plant
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode, run_token, run_token_spec
@@ -390,15 +391,15 @@ class PlantNode(RigNode):
         out.update(
             {
                 "state": "failed" if self.failure else ("finished" if self.finished else "running"),
-                "steps": str(self.steps),
-                "simulated time (s)": f"{self.steps * self.Ts:.9g}",
-                "wall time (s)": f"{wall:.4f}",
-                "steps per second": f"{self.steps / wall:.1f}" if wall > 0 else "0",
+                Plant.steps.text: str(self.steps),
+                Plant.simulated_time.text: f"{self.steps * self.Ts:.9g}",
+                Plant.wall_time.text: f"{wall:.4f}",
+                Plant.steps_per_second.text: f"{self.steps / wall:.1f}" if wall > 0 else "0",
                 "connect time (s)": f"{self.connect_s:.3f}",
                 "generalised coordinates": str(self.model.n),
-                "air gap (m)": f"{self.air_gap:.6g}",
+                Plant.air_gap.text: f"{self.air_gap:.6g}",
                 "current limit (A)": f"{self.limit:.6g}",
-                "saturated steps": str(self.saturated),
+                Plant.saturated_steps.text: str(self.saturated),
                 "max command (A)": f"{self.max_current:.6g}",
                 "failure": self.failure,
             }
@@ -408,13 +409,13 @@ class PlantNode(RigNode):
         out["spin speed (rpm)"] = f"{self.rig.spin_speed() * 30 / np.pi:.6g}"
         out.update(self.report.values())
         if self.mode == "lockstep":
-            out["duplicate commands"] = str(self.duplicates)
+            out[Plant.duplicate_commands.text] = str(self.duplicates)
             out["start wait (s)"] = f"{self.start_wait_s:.3f}"
             out.update(self.round_trip.summary("command wait"))
         else:
             pol = self.policy
-            out.update({"late commands held (samples)": str(pol.held), "zero current (samples)": str(pol.zeroed),
-                        "command losses": str(pol.losses), "command state": pol.state,
+            out.update({Plant.late_commands_held.text: str(pol.held), Plant.zero_current.text: str(pol.zeroed),
+                        Plant.command_losses.text: str(pol.losses), "command state": pol.state,
                         "missed deadlines": str(self.missed), "skipped ticks": str(self.skipped)})  # fmt: skip
             out.update(self.period_error.summary("period error"))
             out["samples answered"] = str(self.sample_round_trip.count)

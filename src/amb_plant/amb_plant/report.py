@@ -8,7 +8,7 @@ import json
 import numpy as np
 
 from amb_dynamics.iso14839 import TrailingPeaks, clearance_of
-from amb_ros.report_keys import peak_values, vibration_values
+from amb_ros.diag_keys import Plant, peak_values, vibration_values
 
 
 class DisplacementReport:
@@ -43,11 +43,11 @@ def contact_json(ev) -> str:
 def contact_summary(events) -> dict[str, str]:
     """Diagnostics values of the touchdown contacts (shown in the run summary)."""
     if not events:
-        return {"touchdown contacts": "0"}
+        return {Plant.touchdown_contacts.text: "0"}
     first = events[0]
     worst = max(events, key=lambda ev: ev[2])
     return {
-        "touchdown contacts": str(len(events)),
+        Plant.touchdown_contacts.text: str(len(events)),
         "first touchdown": f"t = {first[0]:.6g} s at node {first[1]}",
         "max penetration (m)": f"{worst[2]:.6g} (node {worst[1]}, t = {worst[0]:.6g} s)",
         "peak contact force (N)": f"{max(ev[3] for ev in events):.6g}",

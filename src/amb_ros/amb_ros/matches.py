@@ -18,6 +18,8 @@ from __future__ import annotations
 from rclpy.event_handler import QoSSubscriptionEventType
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
+from .diag_keys import per_topic
+
 UNKNOWN_NAME = "_NODE_NAME_UNKNOWN_"  # rmw's node name of an endpoint whose node is not known yet
 
 
@@ -77,8 +79,8 @@ class PublisherMatches:
         self.poll()
         out = {}
         for topic, total in sorted(self.total.items()):
-            out[f"publishers matched {topic}"] = str(total)
+            out[per_topic("publishers matched", topic).text] = str(total)
             if extra := self.foreign(topic):
-                out[f"foreign publishers {topic}"] = str(extra)
-                out[f"publishers seen {topic}"] = ", ".join(self.names[topic]) or "none left to name"
+                out[per_topic("foreign publishers", topic).text] = str(extra)
+                out[per_topic("publishers seen", topic).text] = ", ".join(self.names[topic]) or "none left to name"
         return out

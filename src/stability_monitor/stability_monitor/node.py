@@ -41,6 +41,7 @@ from trajectory_msgs.msg import JointTrajectory
 import amb_ros.messages as m
 from amb_dynamics.errors import InputError
 from amb_dynamics.estimator.fit import METHODS
+from amb_ros.diag_keys import Monitor
 from amb_ros.diagnostics import ERROR, OK, WARN, Timings
 from amb_ros.live_params import LiveParams, param_at_spec
 from amb_ros.loop import Waiter
@@ -292,30 +293,37 @@ class MonitorNode(RigNode):
     def values(self) -> dict[str, str]:
         out = self.common_values()
         pl = self.pipeline
-        out.update({"input": self.input, "unstable": str(self.flag).lower(), "samples lost": str(self.lost)})
+        out.update(
+            {
+                "input": self.input,
+                Monitor.unstable.text: str(self.flag).lower(),
+                Monitor.samples_lost.text: str(self.lost),
+            }
+        )
         if pl.samples:
             out.update({"samples": str(pl.samples), "refits": str(pl.refits), "restarts": str(pl.restarts),
                         "state": pl.state, "forcing": pl.forcing,
                         "synchronous harmonics": str(self.settings.synchronous)})  # fmt: skip
             if pl.period_estimate is not None:
-                out["period (s)"] = f"{pl.period_estimate.period:.9g}"
+                out[Monitor.period.text] = f"{pl.period_estimate.period:.9g}"
                 out["base period (s)"] = f"{pl.period_estimate.base_period:.9g}"
             if pl.flag_time is not None:
-                out["flag raised at (s)"] = f"{pl.flag_time:.6g}"
+                out[Monitor.flag_raised_at.text] = f"{pl.flag_time:.6g}"
             est = pl.latest
             if est is not None:
                 f = est.fit
-                out.update({"verdict": est.verdict, "periods used": str(est.periods), "rank": str(f.rank),
+                out.update({Monitor.verdict.text: est.verdict, Monitor.periods_used.text: str(est.periods),
+                            "rank": str(f.rank),
                             "signal rank": str(f.signal_rank), "snr": f"{f.snr:.3g}",
                             "confidence": f"{est.confidence:.4f}", "estimate time (s)": f"{est.time:.6g}"})  # fmt: skip
                 if f.excited:
-                    out["rho"] = f"{f.rho:.6f}"
-                    out["rho std"] = f"{f.rho_std:.3g}"
+                    out[Monitor.rho.text] = f"{f.rho:.6f}"
+                    out[Monitor.rho_std.text] = f"{f.rho_std:.3g}"
         if self.model is not None:
             out.update(self.model.values())
             if pl.period_estimate is not None and (rho := self.model.per(pl.period_estimate.period)) is not None:
-                out["model rho"] = f"{rho:.6f}"  # per the estimate's period
-                out["model mismatch"] = str(self.mismatch() is not None).lower()
+                out[Monitor.model_rho.text] = f"{rho:.6f}"  # per the estimate's period
+                out[Monitor.model_mismatch.text] = str(self.mismatch() is not None).lower()
         out.update(self.live.values())
         out.update(self.cost.summary("cost per sample"))
         return out
