@@ -292,3 +292,30 @@ def ros_node(name: str):
         executor.shutdown()
         node.destroy_node()
         rclpy.shutdown(context=ctx)
+
+
+def worker_processes(proc) -> list:
+    """The multiprocessing (spawn) worker processes under ``proc`` (psutil.Process objects)."""
+    import psutil
+
+    return [c for c in psutil.Process(proc.pid).children(recursive=True) if "spawn_main" in " ".join(c.cmdline())]
+
+
+def stop_and_check(proc, workers: list, signum: int, group: bool) -> float:
+    """Send ``signum`` to ``proc`` (``group``: to its whole process group, as a terminal's Ctrl-C does), check that
+    it exits with 128 + signum saying so in one stderr line and leaves no worker alive; return the seconds it
+    took to exit."""
+    import psutil
+
+    t0 = time.monotonic()
+    if group:
+        os.killpg(proc.pid, signum)
+    else:
+        proc.send_signal(signum)
+    proc.wait(10)
+    elapsed = time.monotonic() - t0
+    assert proc.returncode == 128 + signum
+    assert f"stopped by signal {int(signum)}" in proc.stderr.read().decode()
+    time.sleep(0.5)
+    assert [w.pid for w in workers if w.is_running() and w.status() != psutil.STATUS_ZOMBIE] == []
+    return elapsed

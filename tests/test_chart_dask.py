@@ -15,12 +15,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-import psutil
 import pytest
 
 from amb_dynamics.chart_jobs import ChartSpec, run_chart_job
 from amb_dynamics.config import load_config
 from amb_dynamics.dask_exec import blas_threads
+from helpers import stop_and_check, worker_processes
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "config" / "seed_paper.yaml"
@@ -144,28 +144,16 @@ def test_a_signal_stops_the_chart_within_a_second_without_orphans(tmp_path, sign
     cmd = chart_cmd(tmp_path, "--workers", "2", "--no-cache")
     cmd[cmd.index("28:32:3")] = "2:3:6"  # slow rows (T/Ts ~ 6000): still running when the signal comes
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
-    parent = psutil.Process(proc.pid)
     deadline = time.monotonic() + 90
     workers = []
     while time.monotonic() < deadline:
-        workers = [c for c in parent.children(recursive=True) if "spawn_main" in " ".join(c.cmdline())]
+        workers = worker_processes(proc)
         if len(workers) >= 2:
             break
         time.sleep(0.1)
     assert len(workers) == 2
     time.sleep(3.0)  # the workers are computing
-    t0 = time.monotonic()
-    if group:
-        os.killpg(proc.pid, signum)
-    else:
-        proc.send_signal(signum)
-    proc.wait(10)
-    elapsed = time.monotonic() - t0
-    assert proc.returncode == 128 + signum
-    assert f"stopped by signal {int(signum)}" in proc.stderr.read().decode()
-    time.sleep(0.5)
-    alive = [w.pid for w in workers if w.is_running() and w.status() != psutil.STATUS_ZOMBIE]
-    assert alive == []
+    elapsed = stop_and_check(proc, workers, signum, group)
     assert elapsed < 1.0, elapsed
     assert not (tmp_path / "c.json").exists()
 

@@ -23,6 +23,25 @@ BURST = 400
 pytestmark = pytest.mark.ros
 
 
+def wait_running(rec, proc, samples: int = 500) -> None:
+    """Until ``rec`` (a DdsRecorder of /amb/displacement) has seen ``samples`` of the rig's loop."""
+    end = time.monotonic() + 90
+    while len(rec.messages["/amb/displacement"]) < samples and time.monotonic() < end:
+        time.sleep(0.05)
+    assert len(rec.messages["/amb/displacement"]) >= samples, proc.text()
+
+
+def matched_publisher(node, msg_type, topic: str):
+    """A publisher of ``topic`` on ``node`` (lockstep QoS), once it has matched a reader (30 s at most)."""
+    from amb_ros.qos import lockstep_qos
+
+    pub = node.create_publisher(msg_type, topic, lockstep_qos())
+    deadline = time.monotonic() + 30.0
+    while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+        time.sleep(0.002)
+    return pub
+
+
 def brief_intruder(node, topic: str) -> tuple[int, bool, float]:
     """On ``node`` (one that has discovered the rig), a publisher of ``topic`` that sends BURST commands, waits
     until every matched reader has acknowledged them, and leaves: (readers matched, acknowledged, seconds it
@@ -30,12 +49,7 @@ def brief_intruder(node, topic: str) -> tuple[int, bool, float]:
     from rclpy.duration import Duration
     from sensor_msgs.msg import JointState
 
-    from amb_ros.qos import lockstep_qos
-
-    pub = node.create_publisher(JointState, topic, lockstep_qos())
-    deadline = time.monotonic() + 30.0
-    while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
-        time.sleep(0.002)
+    pub = matched_publisher(node, JointState, topic)
     matched, t0 = pub.get_subscription_count(), time.monotonic()
     for _ in range(BURST):
         pub.publish(JointState(name=["amb1_y", "amb1_z", "amb5_y", "amb5_z"], effort=[12.0] * 4))
@@ -56,10 +70,7 @@ def test_a_briefly_matched_publisher_is_counted_and_fails_the_run(tmp_path, venv
     rec = DdsRecorder({"/amb/displacement": JointState})
     try:
         with spawn(rig, tmp_path / "rig.log") as proc:
-            end = time.monotonic() + 90
-            while len(rec.messages["/amb/displacement"]) < 500 and time.monotonic() < end:
-                time.sleep(0.05)
-            assert len(rec.messages["/amb/displacement"]) >= 500, proc.text()
+            wait_running(rec, proc)
             matched, acked, lived = brief_intruder(rec.node, "/amb/current")
             code = proc.wait(120)
             text = proc.text()
@@ -94,7 +105,6 @@ def test_a_future_stamp_and_a_flood_with_the_run_token_leave_the_loop_unharmed(t
     from sensor_msgs.msg import JointState
 
     from amb_controller.node import SAMPLE_WINDOW
-    from amb_ros.qos import lockstep_qos
 
     token = "floodtest1"
     rig = [str(venv_bin / "amb-rig"), "run", "--duration", "30", "--no-monitor", "--json", "--run-token", token,
@@ -103,15 +113,9 @@ def test_a_future_stamp_and_a_flood_with_the_run_token_leave_the_loop_unharmed(t
     rng = np.random.default_rng(7)
     try:
         with spawn(rig, tmp_path / "rig.log") as proc:
-            end = time.monotonic() + 90
-            while len(rec.messages["/amb/displacement"]) < 500 and time.monotonic() < end:
-                time.sleep(0.05)
-            assert len(rec.messages["/amb/displacement"]) >= 500, proc.text()
+            wait_running(rec, proc)
             ts_ns = round(1e9 / 5000)
-            pub = rec.node.create_publisher(JointState, "/amb/displacement", lockstep_qos())
-            deadline = time.monotonic() + 30.0
-            while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
-                time.sleep(0.002)
+            pub = matched_publisher(rec.node, JointState, "/amb/displacement")
             msg = JointState(name=["amb1_y", "amb1_z", "amb5_y", "amb5_z"], position=[1e-3] * 4)
             msg.header.frame_id = token
             msg.header.stamp.sec = 1000  # t = 1000 s

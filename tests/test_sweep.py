@@ -10,7 +10,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import psutil
 import pytest
 import xarray as xr
 
@@ -20,6 +19,7 @@ from amb_dynamics.floquet import floquet
 from amb_dynamics.motion import BaseMotion
 from amb_dynamics.structure import build_structure
 from amb_dynamics.system import closed_loop, periodic_system
+from helpers import stop_and_check, worker_processes
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "config" / "seed_paper.yaml"
@@ -117,22 +117,11 @@ def test_a_signal_stops_the_sweep_within_a_second_without_orphans(tmp_path, sign
             "--controller", "sampled", "--workers", "2"]  # fmt: skip
     cmd = [str(BIN / "amb-dynamics"), *sweep_args(tmp_path, *grid)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
-    parent = psutil.Process(proc.pid)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and not list((tmp_path / "cache").glob("*/chunk-*.npz")):
         time.sleep(0.05)
-    workers = [c for c in parent.children(recursive=True) if "spawn_main" in " ".join(c.cmdline())]
+    workers = worker_processes(proc)
     assert proc.poll() is None and len(workers) >= 1  # mid-sweep, its worker processes computing
-    t0 = time.monotonic()
-    if group:
-        os.killpg(proc.pid, signum)
-    else:
-        proc.send_signal(signum)
-    proc.wait(10)
-    elapsed = time.monotonic() - t0
-    assert proc.returncode == 128 + signum
-    assert f"stopped by signal {int(signum)}" in proc.stderr.read().decode()
-    time.sleep(0.5)
-    assert [w.pid for w in workers if w.is_running() and w.status() != psutil.STATUS_ZOMBIE] == []
+    elapsed = stop_and_check(proc, workers, signum, group)
     assert elapsed < 1.0, elapsed
     assert not (tmp_path / "sw" / "sweep.nc").exists()
