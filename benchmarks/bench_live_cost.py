@@ -18,7 +18,7 @@ from report import record
 
 BIN = Path(sys.executable).parent
 PAPER = ["--config", str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")]  # a fast plant
-RIG_DURATION = 4.0  # simulated s: 20,000 steps at 5 kHz
+RIG_DURATION = 3.0  # simulated s: 15,000 steps at 5 kHz
 PAIRS = 5
 
 
