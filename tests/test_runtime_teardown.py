@@ -43,3 +43,18 @@ def test_normal_teardown_returns_and_cancels_the_watchdog():
     res = subprocess.run([sys.executable, "-c", RETURNING + "import time; time.sleep(1.0)"], capture_output=True,
                          text=True, timeout=30)  # fmt: skip
     assert res.returncode == 0 and res.stdout.strip() == "returned" and res.stderr == ""
+
+
+def test_the_supervisor_waits_longer_than_a_node_may_take_to_exit():
+    """amb-rig's SIGINT wait covers a node's exit budget: its wait for slow readers (ACK_TIMEOUT_S) and its final
+    report's wait (publish_final's default timeout), with room to spare; else a node still delivering its last
+    samples to a lagging recorder is escalated to SIGTERM and the run fails."""
+    import inspect
+
+    from amb_bringup.supervisor import NODE_EXIT_BUDGET_S, SIGINT_WAIT_S
+    from amb_ros.diagnostics import Diagnostics
+    from amb_ros.node_base import ACK_TIMEOUT_S
+
+    final_s = inspect.signature(Diagnostics.publish_final).parameters["timeout_s"].default
+    assert NODE_EXIT_BUDGET_S == ACK_TIMEOUT_S + final_s
+    assert SIGINT_WAIT_S >= NODE_EXIT_BUDGET_S + 3.0

@@ -175,12 +175,15 @@ def check_recorded_motion(given: dict) -> None:
     """A recorded base motion is read and checked here, before any process starts, as base_motion will read it
     (bounded, regular files only; a bad file is one line naming the file and line, exit 2)."""
     from amb_dynamics.config import load_config
+    from amb_dynamics.errors import AmbError
     from amb_dynamics.recorded import load_recorded
 
-    kind = (
-        given.get("kind")
-        or load_config(given.get("config_file") or None, list(given.get("set") or [])).base_motion.kind
-    )
+    kind = given.get("kind")
+    if not kind:
+        try:
+            kind = load_config(given.get("config_file") or None, list(given.get("set") or [])).base_motion.kind
+        except AmbError:
+            return  # a bad config is reported where amb-rig checks it, after the discovery check
     if kind != "recorded":
         return
     if not given.get("recorded_file"):
