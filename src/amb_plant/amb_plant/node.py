@@ -344,9 +344,8 @@ class PlantNode(RigNode):
             self.failure, code = str(exc), 3
         self.t_wall1 = time.monotonic()
         self.closed = True
-        self.drain(
-            limit=2 * self.p["qos_depth"]
-        )  # what is still queued is counted (a foreign burst, the answer to the last sample), not applied
+        # what is still queued is counted (a foreign burst, the answer to the last sample), never applied
+        self.drain(limit=2 * self.p["qos_depth"])
         self.publish_state(self.state_block.flush())  # the samples of the last, shorter block
         self.publish_aux(self.aux_block.flush())
         self.publish_contacts()
