@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from amb_dynamics.chart import stability_chart
+from amb_dynamics.chart import A_NODES, CHART_STEPS, _Row, stability_chart
 from amb_dynamics.config import load_config, paper_config_path
 from amb_dynamics.floquet import floquet, sampled_floquet
 from amb_dynamics.motion import BaseMotion
@@ -110,3 +110,24 @@ def test_full_model_digital_artefact_of_physics_3_3():
         assert (res.max_abs > 1.0) == unstable
         if unstable:
             assert abs(np.angle(res.multipliers[0])) / Ts > 2e4  # the critical multiplier is a mesh mode
+
+
+@pytest.mark.parametrize(("kind", "form"), [("pitch", "derived"), ("roll", "seed")])
+def test_chart_row_interpolation_matches_every_amplitude_on_the_full_model(kind, form):
+    """A continuous chart row on the full FE model (100 amplitudes): the monodromy interpolated from a few
+    Chebyshev amplitudes equals each amplitude's own product to 1e-9, and only a few products are formed."""
+    cfg = load_config(paper_config_path(), [f"formulation={form}", "modal_cutoff=null"])
+    loop = closed_loop(build_structure(cfg), cfg)
+    amps = np.linspace(0.0, 0.5, 100)
+    row = _Row(loop, kind, cfg.spin_rad_s, amps, CHART_STEPS)
+    formed = []
+    products = row.monodromies
+    row.monodromies = lambda ps, w, a: formed.append(len(a)) or products(ps, w, a)
+    for w in (1.0, 15.7, 22.3, 37.0):
+        formed.clear()
+        rho, crit = row.evaluate(w)
+        assert sum(formed) <= 3 * A_NODES + 4, formed  # at most two rounds: n, then 2n nodes (+2 checks each)
+        rho_each, crit_each = row.evaluate(w, exact=True)
+        assert np.abs(rho - rho_each).max() <= 1e-9
+        near = np.abs(rho - 1) > 1e-3  # the critical frequency of a well-separated multiplier
+        assert np.abs(crit - crit_each)[near].max() <= 1e-6

@@ -1,10 +1,13 @@
 """Stability charts: max|mu| over a (omega, A) grid of a single-axis base motion, fast.
 
-Per frequency row, every grid point needs N Magnus-4 step exponentials expm(Omega_4(A)).  Omega_4 is an entire
-function of the amplitude A, so the exponentials are computed at Chebyshev nodes in A only and interpolated
-(barycentric) to the grid amplitudes; the N step matrices of all amplitudes are then multiplied by batched tree
-reduction.  The commutator of Omega_4 comes from precomputed pair commutators of the basis matrices, and a
-diagonal similarity (matrix balancing) keeps ||h A|| small.  Rows run in parallel processes.
+Per frequency row, the monodromy Psi(A) of a grid point is the product of N Magnus-4 step exponentials
+expm(Omega_4(A)).  Along a single-axis motion the base rates are linear in A, so Psi is an entire function of A
+(of A^2 for pitch and yaw, whose coefficients are products of two rates).  The products are therefore formed at a
+few Chebyshev amplitudes plus two check amplitudes (the grid amplitudes farthest from the nodes) and Psi is
+interpolated (barycentric) to the grid; the nodes are doubled until rho at the check amplitudes agrees to
+``AMP_TOL`` (:func:`interpolated_row`, shared with the digital-loop chart).  The commutator of Omega_4 comes from
+precomputed pair commutators of the basis matrices, and a diagonal similarity (matrix balancing) keeps ||h A||
+small.  Exponentials are batched in bounded blocks.  Rows run in parallel processes.
 Agreement with single-point Magnus and with scipy solve_ivp is shown in tests and in ``make bench``.
 """
 
@@ -14,6 +17,7 @@ import multiprocessing as mp
 import os
 import sys
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
@@ -22,10 +26,24 @@ import numpy as np
 from .floquet import GAUSS_C, SQRT3
 from .matrix_exp import balancing_scale, expm_stack
 from .motion import BaseMotion
-from .system import COEFFICIENTS, ClosedLoop, coefficient_values, periodic_system
+from .system import COEFFICIENTS, ClosedLoop, PeriodicSystem, coefficient_values, periodic_system
 
 CHART_STEPS = 32  # Magnus steps per period: converged to < 2e-7 in rho on the seed rotor (tests)
-CHEB_NODES = 16  # amplitude nodes per row: interpolation error < 1e-10 in rho (tests)
+A_NODES = 6  # first number of Chebyshev amplitudes per row (doubled until the check amplitudes agree)
+AMP_TOL = 1e-10  # |rho_interp - rho_exact| at the check amplitudes
+EXPM_BLOCK = 64  # step exponentials per batch: bounded temporaries, reused by the allocator row after row
+AMP_BLOCK = 8  # amplitudes whose step maps are held at once
+EVEN_COEFFICIENTS = frozenset({"Ox2", "Oy2", "Oz2", "OyOz", "Oyz2"})  # products of two base rates: even in A
+
+
+def continuous_method(steps: int = CHART_STEPS) -> dict:
+    """The continuous chart's method, as written in its JSON."""
+    return {
+        "integrator": "magnus4",
+        "steps_per_period": steps,
+        "amplitude": f"monodromy interpolated from {A_NODES} Chebyshev nodes (in A^2 for pitch and yaw, in A for "
+        f"roll), nodes doubled until rho at two check amplitudes agrees to {AMP_TOL:g}",
+    }
 
 
 @dataclass(frozen=True)
@@ -36,7 +54,6 @@ class ChartResult:
     rho: np.ndarray  # (n_w, n_A) max|mu| per period of A(t)
     critical: np.ndarray  # (n_w, n_A) |arg mu|/T of the critical multiplier (rad/s)
     steps: int
-    nodes: int
     seconds: float
 
     def to_dict(self) -> dict:
@@ -48,11 +65,7 @@ class ChartResult:
             "critical_frequency_rad_s": self.critical.tolist(),
             "unstable_points": int((self.rho > 1 + 1e-6).sum()),
             "points": int(self.rho.size),
-            "method": {
-                "integrator": "magnus4",
-                "steps_per_period": self.steps,
-                "amplitude_chebyshev_nodes": self.nodes,
-            },
+            "method": continuous_method(self.steps),
             "wall_time_s": self.seconds,
         }
 
@@ -87,19 +100,78 @@ def _tree_product(S: np.ndarray) -> np.ndarray:
     return S[..., 0, :, :]
 
 
+def amplitude_nodes(amps: np.ndarray, n: int, even: bool):
+    """(node amplitudes, interpolation matrix grid <- nodes or None if exact, indices of the check amplitudes)."""
+    if amps.size <= n:
+        return amps.copy(), None, np.empty(0, dtype=int)
+    lo, hi = float(amps.min()), float(amps.max())
+    if even:
+        s_nodes = _cheb_nodes(lo * lo, hi * hi, n)
+        nodes, W = np.sqrt(s_nodes), _bary_weights(s_nodes, amps * amps)
+        dist = np.abs(amps[:, None] ** 2 - s_nodes[None, :]).min(axis=1)
+    else:
+        nodes = _cheb_nodes(lo, hi, n)
+        W = _bary_weights(nodes, amps)
+        dist = np.abs(amps[:, None] - nodes[None, :]).min(axis=1)
+    return nodes, W, np.sort(np.argsort(-dist, kind="stable")[:2])
+
+
+def interpolated_row(
+    monodromies: Callable[[np.ndarray], np.ndarray],
+    amps: np.ndarray,
+    even: bool,
+    critical: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """(rho, critical frequency, check error) at every amplitude of ``amps`` from ``monodromies(A)`` formed at
+    Chebyshev amplitudes only; ``critical(Psi stack)`` gives (rho, critical frequency)."""
+    n = A_NODES
+    while True:
+        nodes, W, checks = amplitude_nodes(amps, n, even)
+        Psi = monodromies(np.concatenate([nodes, amps[checks]]))
+        Pn, Pc = Psi[: nodes.size], Psi[nodes.size :]
+        if W is None:
+            rho, crit = critical(Pn)
+            return rho, crit, 0.0
+        Pg = (W @ Pn.reshape(nodes.size, -1)).reshape(amps.size, *Pn.shape[1:])
+        rho, crit = critical(Pg)
+        err = float(np.abs(critical(Pc)[0] - rho[checks]).max())
+        if err <= AMP_TOL or 2 * n >= amps.size:
+            if err > AMP_TOL:  # as many nodes as grid amplitudes: compute every amplitude exactly
+                rho, crit = critical(monodromies(amps))
+                err = 0.0
+            return rho, crit, err
+        n *= 2
+
+
 class _Row:
     """Everything needed to evaluate one omega row (picklable, built once per chart)."""
 
-    def __init__(self, loop: ClosedLoop, kind: str, spin: float, amplitudes: np.ndarray, steps: int, nodes: int):
-        self.loop, self.kind, self.spin, self.amps, self.steps = loop, kind, spin, amplitudes, steps
-        lo, hi = float(amplitudes.min()), float(amplitudes.max())
-        self.nodes = amplitudes.copy() if amplitudes.size <= nodes or hi == lo else _cheb_nodes(lo, hi, nodes)
-        self.W = _bary_weights(self.nodes, amplitudes) if self.nodes is not amplitudes else None
+    def __init__(self, loop: ClosedLoop, kind: str, spin: float, amplitudes: np.ndarray, steps: int):
+        self.loop, self.kind, self.spin, self.steps = loop, kind, spin, steps
+        self.amps = np.asarray(amplitudes, dtype=float)
         # diagonal similarity from the constant part (multipliers are invariant)
         self.scale = balancing_scale(loop.A0)
 
-    def evaluate(self, omega: float) -> tuple[np.ndarray, np.ndarray]:
+    def evaluate(self, omega: float, exact: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """(rho, critical frequency) per grid amplitude; ``exact``: every amplitude's own product, no interpolation."""
         ps = periodic_system(self.loop, BaseMotion.single(self.kind, 1.0, omega), self.spin)
+        T = ps.period
+
+        def critical(P):
+            mu = np.linalg.eigvals(P)
+            c = mu[np.arange(mu.shape[0]), np.argmax(np.abs(mu), axis=1)]
+            return np.abs(c), np.abs(np.angle(c)) / T
+
+        def monodromies(amps):
+            return self.monodromies(ps, omega, amps)
+
+        if exact:
+            return critical(monodromies(self.amps))
+        rho, crit, _ = interpolated_row(monodromies, self.amps, set(ps.names) <= EVEN_COEFFICIENTS, critical)
+        return rho, crit
+
+    def monodromies(self, ps: PeriodicSystem, omega: float, amps: np.ndarray) -> np.ndarray:
+        """Psi(A) for each amplitude of ``amps``: products of the N Magnus-4 step exponentials, (len(amps), d, d)."""
         T, N = ps.period, self.steps
         s = self.scale
         basis = np.concatenate([ps.A0[None], ps.A_stack]) / s[None, :, None] * s[None, None, :]
@@ -111,22 +183,22 @@ class _Row:
         h = T / N
         tk = h * np.arange(N)
         t1, t2 = tk + GAUSS_C[0] * h, tk + GAUSS_C[1] * h
-        exps = []
-        for A in self.nodes:
-            mo = BaseMotion.single(self.kind, float(A), omega)
-            c1 = np.vstack([np.ones(N), self._coef(mo, t1, ps.names)])
-            c2 = np.vstack([np.ones(N), self._coef(mo, t2, ps.names)])
-            lin = (h / 2) * (c1 + c2)  # (k, N)
-            com = np.array([c2[i] * c1[j] - c2[j] * c1[i] for i, j in pairs]).reshape(len(pairs), N)
-            weights = np.vstack([lin, (SQRT3 / 12) * h * h * com])  # Omega_4 = sum_m weights[m, n] * mats[m]
-            exps.append((weights.T @ mats).reshape(N, d, d))
-        E = expm_stack(np.concatenate(exps)).reshape(len(self.nodes), N, d, d)
-        S = E if self.W is None else (self.W @ E.reshape(len(self.nodes), -1)).reshape(-1, N, d, d)
-        P = _tree_product(S)
-        mu = np.linalg.eigvals(P)
-        i = np.argmax(np.abs(mu), axis=1)
-        crit = mu[np.arange(mu.shape[0]), i]
-        return np.abs(crit), np.abs(np.angle(crit)) / T
+        out = np.empty((len(amps), d, d))
+        for a0 in range(0, len(amps), AMP_BLOCK):
+            weights = []
+            for A in amps[a0 : a0 + AMP_BLOCK]:
+                mo = BaseMotion.single(self.kind, float(A), omega)
+                c1 = np.vstack([np.ones(N), self._coef(mo, t1, ps.names)])
+                c2 = np.vstack([np.ones(N), self._coef(mo, t2, ps.names)])
+                lin = (h / 2) * (c1 + c2)  # (k, N)
+                com = np.array([c2[i] * c1[j] - c2[j] * c1[i] for i, j in pairs]).reshape(len(pairs), N)
+                weights.append(np.vstack([lin, (SQRT3 / 12) * h * h * com]).T)  # Omega_4 = weights @ mats
+            weights = np.concatenate(weights)
+            E = np.empty((weights.shape[0], d, d))
+            for b in range(0, weights.shape[0], EXPM_BLOCK):
+                E[b : b + EXPM_BLOCK] = expm_stack((weights[b : b + EXPM_BLOCK] @ mats).reshape(-1, d, d))
+            out[a0 : a0 + AMP_BLOCK] = _tree_product(E.reshape(-1, N, d, d))
+        return out
 
     def _coef(self, motion: BaseMotion, t: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
         c = coefficient_values(motion, self.spin, t)
@@ -154,7 +226,6 @@ def stability_chart(
     amplitudes,
     spin: float,
     steps: int = CHART_STEPS,
-    nodes: int = CHEB_NODES,
     workers: int | None = None,
     progress: bool = False,
 ) -> ChartResult:
@@ -162,7 +233,7 @@ def stability_chart(
     omegas = np.asarray(omegas, dtype=float)
     amplitudes = np.asarray(amplitudes, dtype=float)
     t0 = time.perf_counter()
-    row = _Row(loop, kind, spin, amplitudes, steps, nodes)
+    row = _Row(loop, kind, spin, amplitudes, steps)
     rho = np.empty((omegas.size, amplitudes.size))
     crit = np.empty_like(rho)
     workers = workers or min(os.cpu_count() or 1, omegas.size)
@@ -189,4 +260,4 @@ def stability_chart(
                 report()
     if progress:
         print(file=sys.stderr)
-    return ChartResult(kind, omegas, amplitudes, rho, crit, steps, row.nodes.size, time.perf_counter() - t0)
+    return ChartResult(kind, omegas, amplitudes, rho, crit, steps, time.perf_counter() - t0)

@@ -13,10 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .chart import CHART_STEPS, CHEB_NODES, _Row
+from .chart import A_NODES, AMP_TOL, CHART_STEPS, _Row, continuous_method
 from .config import RotorConfig, to_dict
 from .dask_exec import ChunkRunner, cache_key
-from .digital_chart import A_NODES, AMP_TOL, CHART_MAX_R, digital_row
+from .digital_chart import CHART_MAX_R, digital_row
 from .digital_floquet import BOUND_FLOOR, BOUND_SAFETY
 from .rate_family import U_NODES
 from .sampled import SampledLoop
@@ -24,7 +24,7 @@ from .structure import build_structure
 from .system import closed_loop
 
 SCHEMA_VERSION = 1
-CACHE_VERSION = "chart-2"  # bump when the numbers a chunk produces change
+CACHE_VERSION = "chart-3"  # bump when the numbers a chunk produces change
 _MEMO: dict[bytes, object] = {}
 
 
@@ -39,7 +39,7 @@ class ChartSpec:
 
     def method(self) -> dict:
         if self.controller == "continuous":
-            return {"integrator": "magnus4", "steps_per_period": CHART_STEPS, "amplitude_chebyshev_nodes": CHEB_NODES}
+            return continuous_method()
         return {
             "loop": "sampled-data (ZOH, discrete PID, base rates held per sample)",
             "exact": f"product of the step maps over the hybrid period when T/Ts = p/r, r <= {CHART_MAX_R}",
@@ -78,7 +78,7 @@ def chart_chunk(spec: ChartSpec, omegas: np.ndarray, amps: np.ndarray) -> dict:
     out["method"] = np.zeros(n_w, dtype=np.int8)
     out["steps"] = np.zeros(n_w, dtype=np.int64)
     if spec.controller == "continuous":
-        row = _Row(built, spec.kind, spec.cfg.spin_rad_s, amps, CHART_STEPS, CHEB_NODES)
+        row = _Row(built, spec.kind, spec.cfg.spin_rad_s, amps, CHART_STEPS)
         for i, w in enumerate(omegas):
             out["rho"][i], out["critical"][i] = row.evaluate(float(w))
         out["bound"][:] = np.nan  # validated separately (tests: < 1e-6 against single-point Magnus)

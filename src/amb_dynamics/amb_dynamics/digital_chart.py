@@ -10,9 +10,9 @@ One grid row (fixed omega, all amplitudes) at a time, built on ``SampledLoop.ste
    instead of one expm per step per point; the interpolation error is measured at probe points and the nodes
    doubled until it is below ``STEP_TOL`` relative.
 3. The monodromy Psi(A) is an entire function of A^2 (pitch, yaw) or A (roll): the products are formed at
-   ``A_NODES`` Chebyshev amplitudes plus two check amplitudes (the grid amplitudes farthest from the nodes),
-   interpolated to the grid, and the nodes doubled until rho at the check amplitudes agrees to ``AMP_TOL``.
-   The measured check difference is added to the point's error bound.
+   ``chart.A_NODES`` Chebyshev amplitudes plus two check amplitudes and interpolated to the grid
+   (:func:`chart.interpolated_row`, as in the continuous chart).  The measured check difference is added to the
+   point's error bound.
 """
 
 from __future__ import annotations
@@ -21,15 +21,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .chart import _bary_weights, _cheb_nodes, _tree_product
+from .chart import _tree_product, interpolated_row
 from .digital_floquet import RatioPlan, plan_ratio
 from .motion import BaseMotion
 from .rate_family import STEP_TOL, RateFamily
 from .sampled import SampledLoop
 
 CHART_MAX_R = 4  # exact hybrid products in a chart only for r <= 4 (cost r T/Ts steps); otherwise interpolation
-A_NODES = 6
-AMP_TOL = 1e-10  # |rho_interp - rho_exact| at the check amplitudes
 BLOCK = 256  # steps multiplied per batch (memory: nodes x BLOCK x dim^2 doubles)
 METHOD_CODES = {"exact": 0, "interp": 1}
 
@@ -41,22 +39,6 @@ class RowResult:
     critical: np.ndarray  # (n_A,) rad/s
     method: int  # METHOD_CODES
     steps: int  # step maps per point (sum over the ratios)
-
-
-def _amplitude_nodes(amps: np.ndarray, n: int, even: bool):
-    """(node amplitudes, interpolation matrix grid <- nodes or None if exact, indices of the check amplitudes)."""
-    if amps.size <= n:
-        return amps.copy(), None, np.empty(0, dtype=int)
-    lo, hi = float(amps.min()), float(amps.max())
-    if even:
-        s_nodes = _cheb_nodes(lo * lo, hi * hi, n)
-        nodes, W = np.sqrt(s_nodes), _bary_weights(s_nodes, amps * amps)
-        dist = np.abs(amps[:, None] ** 2 - s_nodes[None, :]).min(axis=1)
-    else:
-        nodes = _cheb_nodes(lo, hi, n)
-        W = _bary_weights(nodes, amps)
-        dist = np.abs(amps[:, None] - nodes[None, :]).min(axis=1)
-    return nodes, W, np.sort(np.argsort(-dist, kind="stable")[:2])
 
 
 def ratio_monodromies(fam: RateFamily, kind: str, omega: float, p: int, Ts: float, amps: np.ndarray) -> np.ndarray:
@@ -90,24 +72,9 @@ def ratio_row(loop: SampledLoop, kind: str, omega: float, T: float, p: int, r: i
     axis[{"roll": 0, "yaw": 1, "pitch": 2}[kind]] = 1.0
     amax = float(np.abs(amps).max())
     fam = RateFamily(sub.step_map, axis, amax * omega, amax * omega * omega, tol=STEP_TOL)
-    n = A_NODES
-    while True:
-        nodes, W, checks = _amplitude_nodes(amps, n, fam.even)
-        Psi = ratio_monodromies(fam, kind, omega, p, Ts, np.concatenate([nodes, amps[checks]]))
-        Pn, Pc = Psi[: nodes.size], Psi[nodes.size :]
-        if W is None:
-            rho, crit = _crit(Pn, r, T)
-            return rho, crit, 0.0
-        Pg = (W @ Pn.reshape(nodes.size, -1)).reshape(amps.size, *Pn.shape[1:])
-        rho, crit = _crit(Pg, r, T)
-        rc, _ = _crit(Pc, r, T)
-        err = float(np.abs(rc - rho[checks]).max())
-        if err <= AMP_TOL or 2 * n >= amps.size:
-            if err > AMP_TOL:  # as many nodes as grid amplitudes: compute every amplitude exactly
-                rho, crit = _crit(ratio_monodromies(fam, kind, omega, p, Ts, amps), r, T)
-                err = 0.0
-            return rho, crit, err
-        n *= 2
+    return interpolated_row(
+        lambda a: ratio_monodromies(fam, kind, omega, p, Ts, a), amps, fam.even, lambda P: _crit(P, r, T)
+    )
 
 
 def digital_row(loop: SampledLoop, kind: str, omega: float, amps: np.ndarray, max_r: int = CHART_MAX_R) -> RowResult:

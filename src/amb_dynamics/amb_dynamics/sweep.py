@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from . import plots
-from .chart import CHART_STEPS, CHEB_NODES, _Row
+from .chart import CHART_STEPS, _Row
 from .chart_cli import DEFAULT_CACHE, add_execution_args, check_execution
 from .chart_jobs import SCHEMA_VERSION, ChartSpec, _built, chart_chunk
 from .config import load_config, to_dict
@@ -74,7 +74,7 @@ def rho_at(spec: ChartSpec, omega: float, amplitude: float) -> float:
     built = _built(spec)
     amps = np.array([amplitude])
     if spec.controller == "continuous":
-        return float(_Row(built, spec.kind, spec.cfg.spin_rad_s, amps, CHART_STEPS, CHEB_NODES).evaluate(omega)[0][0])
+        return float(_Row(built, spec.kind, spec.cfg.spin_rad_s, amps, CHART_STEPS).evaluate(omega)[0][0])
     return float(digital_row(built, spec.kind, omega, amps).rho[0])
 
 
