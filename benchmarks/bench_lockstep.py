@@ -20,6 +20,9 @@
    alternating; printed as round trips/s and ratios (the nodes keep the wait-set path unless these say otherwise).
 5. Lockstep with the real-rig default config (every effect on, the default pitching base), alternating with the
    paper config's normal runs: goal >= 0.9 x its steps/s.
+6. CPU per lockstep step of each node process, real-rig default config (tools/rig_cpu.py: the difference of a
+   short and a long run, so start-up is excluded), all threads and the Python main thread: goal <= 40 us for the
+   plant and the controller.
 
 ``main()`` prints a small table and returns a dict (benchmarks/run_all.py calls it).
 """
@@ -43,6 +46,9 @@ PAPER = ["--config", str(Path(__file__).resolve().parents[1] / "config" / "seed_
 GOAL_STEPS_PER_S = 2000.0
 GOAL_P99_US = 100.0
 GOAL_REAL_RIG_RATIO = 0.9  # the real-rig default's lockstep steps/s over the paper config's, same run
+CPU_TOOL = Path(__file__).resolve().parents[1] / "tools" / "rig_cpu.py"
+CPU_RUNS = 2  # measurements of tools/rig_cpu.py (each a short and a long run)
+CPU_NODES = {"amb-plant": "<= 40", "amb-controller": "<= 40", "amb-base-motion": None}
 
 
 def _env() -> dict:
@@ -229,6 +235,15 @@ def realtime_1khz(trigger: str, duration: float = 5.0) -> dict:
     return out
 
 
+def cpu_per_step(runs: int = CPU_RUNS) -> list[dict]:
+    """tools/rig_cpu.py's measurements: [{"steps_per_s", "us_per_step": {process: {thread group: us}}}, ...]."""
+    out = subprocess.run([sys.executable, str(CPU_TOOL), "--json", "--runs", str(runs), "--duration", "0.5"],
+                         env=_env(), capture_output=True, text=True, timeout=900)  # fmt: skip
+    if out.returncode != 0:
+        raise RuntimeError(f"tools/rig_cpu.py failed: {out.stderr.strip()[-500:]}")
+    return [json.loads(line) for line in out.stdout.splitlines() if line.startswith("{")]
+
+
 def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> dict:
     pp1 = pingpong(round_trips)
     runs = {0: [], 20: [], "real": []}
@@ -241,6 +256,7 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         for path in paths:
             paths[path].append(pingpong(round_trips, path))
     timer, sample = realtime_1khz("timer"), realtime_1khz("sample")
+    cpu = cpu_per_step()
     base = 0.5 * (pp1 + pp2)
     normal = statistics.median(r["steps_per_s"] for r in runs[0])
     fifo = statistics.median(r["steps_per_s"] for r in runs[20])
@@ -265,6 +281,7 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         "realtime_1khz_timer": timer,
         "realtime_1khz_sample": sample,
         "realtime_goal_met": timers_p99 < GOAL_P99_US,
+        "cpu_us_per_step": [c["us_per_step"] for c in cpu],
     }
     steps = runs[0][-1]["steps"]
     rows = [
@@ -307,6 +324,13 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
     record("realtime 1 kHz timer period error p99, controller", timer["p99_us"], "us", goal="< 100")
     record("realtime 1 kHz timer period error p99, plant", timer["plant_p99_us"], "us", goal="< 100")
     record("realtime 1 kHz sample-triggered controller, update-period error p99", sample["p99_us"], "us")
+    for proc, goal in CPU_NODES.items():
+        total = [sum(c["us_per_step"][proc].values()) for c in cpu]
+        main_thread = [c["us_per_step"][proc]["main"] for c in cpu]
+        record(f"CPU per lockstep step, {proc}, all threads (real-rig default config)", total, "us", goal=goal,
+               note=f"main thread {statistics.median(main_thread):.0f} us")  # fmt: skip
+        rows.append((f"CPU per step, {proc} (us)", f"{statistics.median(total):.0f}",
+                     f"all threads; main thread {statistics.median(main_thread):.0f}; goal {goal or '-'}"))  # fmt: skip
     width = max(len(r[0]) for r in rows)
     print("bench_lockstep")
     for name, value, note in rows:

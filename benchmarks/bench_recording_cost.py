@@ -31,7 +31,7 @@ from bench_lockstep import PAPER
 from report import record
 
 RIG_DURATION = 2.0  # simulated s per lockstep run (10,000 steps at 5 kHz)
-RIG_PAIRS = 5  # alternating runs without / with --bag (and beside each control)
+RIG_PAIRS = 4  # alternating runs without / with --bag (and beside each control)
 GOAL_COST = 0.20
 BURN_DUTY = 0.2  # the busy-loop control: a fifth of one core, about the recorder's share (measured)
 BURN_PERIOD_S = 0.01
