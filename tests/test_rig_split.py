@@ -150,3 +150,24 @@ def test_a_plant_seen_by_the_controller_first_is_not_taken_for_gone():
     graph.count = 1  # discovered now
     clock.advance(split.PEER_POLL_S)
     assert not peer.ended() and peer.saw_publisher
+
+
+def test_the_host_side_outlives_a_stale_plant_publisher_while_the_controller_answers():
+    """A killed earlier run's /amb/displacement publisher lingers in the graph until its lease expires; when it
+    vanishes, this run's plant (not yet discovered by amb-rig's own node) is still being answered: not an end.
+    When the answers stop too, the plant has gone after ANSWERS_QUIET_S."""
+    graph, clock = FakeGraph(), Clock()
+    peer = split.PeerEnd(graph, graph, parsed("--no-plant"), clock=clock)
+    controller = {"final": False, "message": "running", "values": {"samples answered": "0"}}
+    graph.others["amb_controller"] = controller
+    graph.count = 1  # the stale publisher
+    assert not peer.ended()
+    for answered in (300, 600, 900, 1200, 1500):
+        controller["values"]["samples answered"] = str(answered)
+        graph.count = 0  # the stale one has gone; this run's plant is not in this process's graph
+        clock.advance(split.ANSWERS_QUIET_S / 2)
+        assert not peer.ended()
+    clock.advance(split.ANSWERS_QUIET_S - 0.2)  # the last answer was 0.2 s short of the quiet time ago
+    assert not peer.ended()
+    clock.advance(0.3)
+    assert peer.ended() and "has no publisher" in peer.reason

@@ -23,6 +23,7 @@ from amb_ros.discovery import CHOICES
 SIDES = ("plant", "host")
 PEER_POLL_S = 0.1
 UNSEEN_GONE_AFTER_S = 6.0  # two of Fast DDS's 3 s participant announcement periods
+ANSWERS_QUIET_S = 2.0  # host side: no publisher and no newly answered sample for this long (10 reports at 0.2 s)
 PLANT_NODE = "amb_plant"
 CONTROLLER_NODE = "amb_controller"
 
@@ -84,10 +85,13 @@ def hold_locks(hold_run_lock, domain: str, args, wait_s: float, on_wait) -> list
 class PeerEnd:
     """Has the other side of a split run ended?  The host side watches the plant, the plant side the controller.
 
-    A peer whose publisher this process has seen has gone when that publisher leaves this process's graph (at once:
-    a realtime plant holds the last command only briefly).  A plant known only from the controller's answered
-    samples (this process's own discovery can lag the controller's by an announcement period) has gone when no
-    publisher has appeared and the controller's count of answered samples has not grown for UNSEEN_GONE_AFTER_S."""
+    A controller whose publisher the plant side has seen has gone when that publisher leaves this process's graph
+    (at once: a realtime plant holds the last command only briefly).  On the host side a plant has gone when no
+    /amb/displacement publisher is in the graph and the controller's count of answered samples has not grown for
+    ANSWERS_QUIET_S: the publisher that vanished may be a killed earlier run's, lingering until its lease expired,
+    while this run's plant, which this process has not discovered yet, is being answered.  A plant known only from
+    the answered samples (this process's own discovery can lag the controller's by an announcement period) has
+    gone when no publisher has appeared and the count has not grown for UNSEEN_GONE_AFTER_S."""
 
     def __init__(self, node, collector, args, clock=time.monotonic):
         self.node, self.collector, self.clock = node, collector, clock
@@ -118,7 +122,11 @@ class PeerEnd:
         self._answered = answered
         self.saw_publisher = self.saw_publisher or count > 0
         self.seen = self.seen or count > 0 or answered > 0
-        gone = count == 0 if self.saw_publisher else now - self._present_at >= UNSEEN_GONE_AFTER_S
+        quiet = now - self._present_at
+        if not self.saw_publisher:
+            gone = quiet >= UNSEEN_GONE_AFTER_S
+        else:
+            gone = count == 0 and (self.topic == m.CURRENT or quiet >= ANSWERS_QUIET_S)
         if diag is not None and diag["final"] and diag["message"].startswith("finished"):
             self.reason = "the plant finished"
         elif self.seen and gone:
