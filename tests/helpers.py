@@ -33,7 +33,7 @@ from procs import spawn
 class DdsRecorder:
     """Records raw messages of some topics in this process (own rclpy context, spun in a thread)."""
 
-    def __init__(self, topics: dict, qos=None):
+    def __init__(self, topics: dict, qos=None, name: str = "test_recorder"):
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
 
@@ -41,7 +41,7 @@ class DdsRecorder:
 
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx)
-        self.node = rclpy.create_node("test_recorder", context=self.ctx)
+        self.node = rclpy.create_node(name, context=self.ctx)
         self.messages: dict[str, list] = {t: [] for t in topics}
         qos = qos if qos is not None else lockstep_qos(100000)
         for topic, msg_type in topics.items():

@@ -15,11 +15,11 @@ from amb_ros.qos import diagnostics_qos
 class DiagnosticsCollector:
     """``latest[node] = {"level", "message", "values", "final"}``; rclpy must be initialised."""
 
-    def __init__(self):
+    def __init__(self, name: str = "amb_rig"):
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
 
-        self.node = rclpy.create_node("amb_rig")
+        self.node = rclpy.create_node(name)
         self.latest: dict[str, dict] = {}
         self.accept_pids = None  # callable returning the pids whose reports count (None: everyone's)
         self.peer_names: set[str] = set()  # a split run: the other side's nodes, whose pids are on another host

@@ -76,6 +76,9 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
     for name in NODES:  # amb-rig's collector, the recorder and the live view must hear every final report: one
         # matched reader is not enough when it is the recorder (seen: the collector heard no report of a short run)
         per[name]["min_diagnostics_readers"] = 1 + bag + live  # the plant's also gates its start
+        collector = getattr(args, "collector_name", "")
+        if collector:  # a split run: the other host's readers count too, this side's collector must be one
+            per[name]["diagnostics_collector"] = collector
     if args.rt_priority:  # the loop's nodes only: the monitor and the recorder run beside it (consumer_priority)
         for name in ("base_motion", "controller", "plant"):
             per[name]["rt_priority"] = int(args.rt_priority)

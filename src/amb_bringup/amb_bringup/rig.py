@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import secrets
 import shutil
 import signal
 import sys
@@ -184,6 +185,8 @@ def run(args, cfg, lock) -> int:
 
     log_dir = Path(args.log_dir) if args.log_dir else Path(tempfile.mkdtemp(prefix="amb-rig-"))
     log_dir.mkdir(parents=True, exist_ok=True)
+    # the nodes' final reports wait for this collector by name: one per run, also on either side of a split
+    args.collector_name = f"amb_rig_{secrets.token_hex(4)}"
     try:
         specs = all_specs(args, log_dir)
     except (FileNotFoundError, ValueError) as exc:
@@ -194,7 +197,7 @@ def run(args, cfg, lock) -> int:
     signal.signal(signal.SIGTERM, interrupted)
     domain = os.environ["ROS_DOMAIN_ID"]  # set by ensure_localhost_dds
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
-    collector = DiagnosticsCollector()
+    collector = DiagnosticsCollector(args.collector_name)
     topics = topics_of(spec.name for spec in specs)
     found = foreign_publishers(collector.node, topics)
     if found:  # before anything starts: the other run must not see this one's nodes either

@@ -326,8 +326,9 @@ class PlantNode(RigNode):
                 missing.append(f"publisher of {sub.topic_name}")
         if self.state_pub.get_subscription_count() < self.p["min_state_subscribers"]:
             missing.append(f"{self.p['min_state_subscribers']} reader(s) of {m.STATE}")
-        if self.diag.pub.get_subscription_count() < self.p["min_diagnostics_readers"]:
-            missing.append(f"reader of {m.DIAGNOSTICS}")
+        readers = self.diag.readers_missing()
+        if readers:
+            missing.append(readers)
         if self.clock_pub is not None and self.clock_pub.get_subscription_count() < 1:
             missing.append(f"reader of {m.CLOCK} (base_motion)")
         return missing

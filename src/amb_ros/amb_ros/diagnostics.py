@@ -97,13 +97,25 @@ class Timings:
 class Diagnostics:
     """Periodic and final DiagnosticStatus of one node."""
 
-    def __init__(self, node, period_s: float = 0.5, min_readers: int = 0):
-        self.node, self.min_readers = node, min_readers
+    def __init__(self, node, period_s: float = 0.5, min_readers: int = 0, collector: str = ""):
+        self.node, self.min_readers, self.collector = node, min_readers, collector
         self.pub = node.create_publisher(DiagnosticArray, DIAGNOSTICS, diagnostics_qos())
         self.period_ns = int(period_s * 1e9)
         self._next_ns = time.monotonic_ns()
         self.level, self.message = OK, "starting"
         self.published = 0
+
+    def readers_missing(self) -> str | None:
+        """What the final report still waits for: ``min_readers`` matched readers and, when named, the collector's
+        own reader.  The count alone is not enough in a split run: the other host's readers count too, and the
+        report must reach this side's amb-rig (seen: a plant ended and reported before its own collector matched)."""
+        if self.pub.get_subscription_count() < self.min_readers:
+            return f"{self.min_readers} reader(s) of {DIAGNOSTICS}"
+        if self.collector and not any(
+            i.node_name == self.collector for i in self.node.get_subscriptions_info_by_topic(DIAGNOSTICS)
+        ):
+            return f"{DIAGNOSTICS} reader {self.collector} (amb-rig's collector)"
+        return None
 
     def due(self) -> bool:
         return time.monotonic_ns() >= self._next_ns
@@ -124,9 +136,9 @@ class Diagnostics:
 
         /diagnostics is volatile: a reader that this publisher has not matched yet would never get the report, and
         a short run can end before discovery has completed (seen: amb-rig's collector missed base_motion's and the
-        controller's every report).  So first wait for ``min_readers`` matched readers."""
+        controller's every report).  So first wait for the readers of ``readers_missing``."""
         deadline = time.monotonic() + timeout_s
-        while self.pub.get_subscription_count() < self.min_readers and time.monotonic() < deadline:
+        while self.readers_missing() and time.monotonic() < deadline:
             time.sleep(0.01)
         self.publish(level, message, values, final=True)
         self.pub.wait_for_all_acked(Duration(seconds=max(0.1, deadline - time.monotonic())))

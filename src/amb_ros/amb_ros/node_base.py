@@ -55,6 +55,12 @@ def common_specs() -> list[ParamSpec]:
             0,
             100,
         ),
+        ParamSpec(
+            "diagnostics_collector",
+            "",
+            "node name of amb-rig's collector: the final report (and the plant's start) also waits until it is "
+            "matched (empty: only the count above)",
+        ),
     ]
 
 
@@ -88,7 +94,9 @@ class RigNode(Node):
         self.Ts = self.Ts_ns / 1e9
         self.counters = Counters()
         self.matches = PublisherMatches(self)  # publishers matched by the input subscriptions (matches.py)
-        self.diag = Diagnostics(self, self.p["diagnostics_period_s"], self.p["min_diagnostics_readers"])
+        self.diag = Diagnostics(
+            self, self.p["diagnostics_period_s"], self.p["min_diagnostics_readers"], self.p["diagnostics_collector"]
+        )
         self.scheduling = "normal"
         if self.p["rt_priority"] > 0:
             self.scheduling = set_realtime_priority(self.p["rt_priority"])
