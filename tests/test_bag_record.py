@@ -10,6 +10,7 @@ from __future__ import annotations
 import io
 import json
 import pickle
+import re
 import sys
 import time
 from collections import defaultdict
@@ -164,6 +165,25 @@ def test_slow_recorder_reports_loss(tmp_path, venv_bin):
         assert row["received"] == len(recorded.get(topic, []))
         assert row["lost"] == sent_n - row["received"] > 0
     assert f"lost in total: {sum(r['lost'] or 0 for r in rows.values())}" in log
+
+
+def test_slow_recorder_without_any_diagnostics_counts_its_own_gaps(tmp_path, venv_bin):
+    """A publisher that sends no /diagnostics (nobody reports a count) and a recorder that cannot keep up: the
+    recorder counts the samples missing between the stamps it got, never "lost in total: 0".  The first step is
+    settled (acknowledged, then 1 s for the slow recorder to take it) and the last stays in its reader queue, so
+    every sample it lost lies between two it has: lost = sent - received exactly, with sent known here."""
+    bag, sent, log = _record(tmp_path, venv_bin, "blind", ["--debug-delay-per-message", "0.002", "--qos-depth", "2"],
+                             ["--diag-every", "0", "--settle-first", "1.0"], steps=300, rate=0)  # fmt: skip
+    assert not _by_topic(sent).get("/diagnostics")  # the publisher reported nothing
+    rows = custom_json(load_metadata(bag), CUSTOM_KEY)
+    recorded = _bag_bytes(bag)["/amb/displacement"]
+    sent_n = len(_by_topic(sent)["/amb/displacement"])
+    assert sent_n == 300 and recorded[0] == _by_topic(sent)["/amb/displacement"][0]  # the first step was taken
+    row = rows["/amb/displacement"]
+    assert row["published"] is None and row["received"] == len(recorded) < sent_n
+    assert row["lost"] == sent_n - len(recorded), row
+    assert "lost in total: 0" not in log
+    assert re.search(r"lost in total: \d+ on \d+ topics; unknown on \d+ without a count", log), log[-2000:]
 
 
 def _messages_in_complete_chunks(path: Path) -> int:

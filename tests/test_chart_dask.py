@@ -142,7 +142,9 @@ def test_a_signal_stops_the_chart_within_a_second_without_orphans(tmp_path, sign
     """SIGTERM as a supervisor sends it (to the main process only); Ctrl-C as a terminal sends it (SIGINT to the
     whole foreground process group, workers included)."""
     cmd = chart_cmd(tmp_path, "--workers", "2", "--no-cache")
-    cmd[cmd.index("28:32:3")] = "2:3:6"  # slow rows (T/Ts ~ 6000): still running when the signal comes
+    # slow rows (T/Ts ~ 6000), 60 of them: ~20 s on two workers here, so still running when the signal comes (6
+    # rows were done in 3 s, and a signal during the PNG's writing after the workers have gone is not this test's)
+    cmd[cmd.index("28:32:3")] = "2:3:60"
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
     deadline = time.monotonic() + 90
     workers = []
@@ -153,6 +155,7 @@ def test_a_signal_stops_the_chart_within_a_second_without_orphans(tmp_path, sign
         time.sleep(0.1)
     assert len(workers) == 2
     time.sleep(3.0)  # the workers are computing
+    assert proc.poll() is None
     elapsed = stop_and_check(proc, workers, signum, group)
     assert elapsed < 1.0, elapsed
     assert not (tmp_path / "c.json").exists()

@@ -88,7 +88,8 @@ def test_bad_input_one_line_no_dataset(tmp_path, capsys, extra, needle):
 
 
 def test_kill9_sweep_resumes_to_the_same_dataset(tmp_path):
-    grid = ["--frequency", "20:30:6", "--amplitude", "0:0.5:4", "--axis", "controller.rate_hz=4000,5000",
+    # 60 chunks, ~15 s on two workers here: after the first chunk there is work left (12 chunks were done in 2 s)
+    grid = ["--frequency", "20:30:30", "--amplitude", "0:0.5:4", "--axis", "controller.rate_hz=4000,5000",
             "--controller", "sampled", "--workers", "1"]  # fmt: skip
     cmd = [str(BIN / "amb-dynamics"), *sweep_args(tmp_path, *grid)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
@@ -113,7 +114,8 @@ def test_kill9_sweep_resumes_to_the_same_dataset(tmp_path):
 @pytest.mark.parametrize(("signum", "group"), [(signal.SIGTERM, False), (signal.SIGINT, True)],
                          ids=["sigterm-to-the-main-process", "ctrl-c-to-the-process-group"])  # fmt: skip
 def test_a_signal_stops_the_sweep_within_a_second_without_orphans(tmp_path, signum, group):
-    grid = ["--frequency", "20:30:6", "--amplitude", "0:0.5:4", "--axis", "controller.rate_hz=4000,5000",
+    # 60 chunks, ~15 s on two workers here: after the first chunk there is work left (12 chunks were done in 2 s)
+    grid = ["--frequency", "20:30:30", "--amplitude", "0:0.5:4", "--axis", "controller.rate_hz=4000,5000",
             "--controller", "sampled", "--workers", "2"]  # fmt: skip
     cmd = [str(BIN / "amb-dynamics"), *sweep_args(tmp_path, *grid)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)

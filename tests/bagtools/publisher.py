@@ -29,6 +29,12 @@ def main() -> None:
     p.add_argument("--best-effort", action="store_true")
     p.add_argument("--depth", type=int, default=1000)
     p.add_argument("--name", default="bag_test_publisher", help="node name, also the diagnostics status name")
+    p.add_argument(
+        "--settle-first",
+        type=float,
+        default=0.0,
+        help="after step 0: wait until every reader has acknowledged it, then S s (a slow reader takes it)",
+    )
     p.add_argument("--linger", type=float, default=0.5, help="seconds to stay alive after the last message")
     args = p.parse_args()
 
@@ -78,6 +84,10 @@ def main() -> None:
     for k in range(args.steps):
         for topic, _, msg in mix.step_messages(k):
             publish(topic, msg)
+        if k == 0 and args.settle_first > 0:
+            for pub in pubs.values():
+                pub.wait_for_all_acked(Duration(seconds=5))
+            time.sleep(args.settle_first)
         if args.diag_every and k % args.diag_every == args.diag_every - 1:
             publish_diagnostics(k)
         if args.rate > 0:
