@@ -17,11 +17,12 @@ import time
 
 from amb_ros import messages as m
 from amb_ros.diag_keys import per_topic, topics_with
-from amb_ros.matches import full_name
+from amb_ros.matches import UNKNOWN_NAME, full_name
 
 PROBE_S = 0.3  # graph watch before a run starts
 POLL_S = 0.05
 WATCH_PERIOD_S = 0.25
+NAME_GRACE_S = 1.0  # an intruder seen before its node's name: wait this long for the name before reporting
 
 PUBLISHES = {  # amb-rig process name -> data topics its node publishes
     "base_motion": (m.BASE_RATES, m.IMU, m.ANGULAR_ACCELERATION),
@@ -79,19 +80,33 @@ class Watch:
         self.node, self.topics, self.domain, self.collector = node, list(topics), domain, collector
         self._next = 0.0
         self.reported = False
+        self._pending: dict[str, list[str]] = {}  # found, but a node not yet named: waiting for its name
+        self._pending_since = 0.0
 
     def check(self) -> str | None:
-        """An error message if an intruder is publishing, else None (graph looked at every WATCH_PERIOD_S)."""
+        """An error message if an intruder is publishing, else None (graph looked at every WATCH_PERIOD_S).
+
+        The graph can show a new endpoint before its node's name (ros_discovery_info comes separately): such a
+        finding is held for up to NAME_GRACE_S until the name is known, then reported with what is known (also
+        when the intruder has left meanwhile)."""
         now = time.monotonic()
         if now < self._next:
             return None
         self._next = now + WATCH_PERIOD_S
         found = {**self.matched(), **publishers(self.node, self.topics, more_than=1)}
-        return self._report(found)
+        if found:
+            if not self._pending:
+                self._pending_since = now
+            self._pending = found
+        if not self._pending:
+            return None
+        if _unnamed(self._pending) and now < self._pending_since + NAME_GRACE_S:
+            return None
+        return self._report(self._pending)
 
     def final(self) -> list[str]:
         """After the run: the nodes' final counts (an intruder of the last moments), unless already reported."""
-        msg = None if self.reported else self._report(self.matched())
+        msg = None if self.reported else self._report(self.matched() or self._pending)
         return [msg] if msg else []
 
     def matched(self) -> dict[str, list[str]]:
@@ -110,3 +125,7 @@ class Watch:
             return None
         self.reported = True
         return describe(found, self.domain, "joined this run")
+
+
+def _unnamed(found: dict[str, list[str]]) -> bool:
+    return any(full_name("", UNKNOWN_NAME) in nodes for nodes in found.values())
