@@ -1,4 +1,5 @@
-"""The plant's two time modes (see amb_plant.node): the lockstep clock-master loop and the realtime ticker."""
+"""The plant's start gate and its two time modes (see amb_plant.node): the lockstep clock-master loop and the
+realtime ticker."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import time
 import numpy as np
 
 import amb_ros.messages as m
+from amb_ros.diagnostics import WARN
 from amb_ros.loop import Ticker
 from amb_ros.runtime import RunFailed
 
@@ -102,3 +104,38 @@ def run_realtime(node) -> None:
             node.waiter.serve()
             if node.diag.due():
                 node.diag.publish(*node.status(), node.values())
+
+
+def wait_connected(node) -> None:
+    """Bounded wait until controller and base motion (and min_subscribers readers) are matched."""
+    t0 = time.monotonic()
+    deadline = t0 + node.p["start_timeout_s"]
+    while not node.stop.is_set:
+        missing = missing_peers(node)
+        if not missing:
+            node.connect_s = time.monotonic() - t0
+            return
+        if time.monotonic() > deadline:
+            raise RunFailed(f"no {', '.join(missing)} after {node.p['start_timeout_s']:g} s (start timeout)")
+        if node.diag.due():
+            node.diag.publish(WARN, f"waiting for {', '.join(missing)}", node.values())
+        node.waiter.serve(force=True)
+        time.sleep(0.02)
+
+
+def missing_peers(node) -> list[str]:
+    """What the plant still waits for before step 0 (empty: every peer and reader is matched)."""
+    missing = []
+    if node.disp_pub.get_subscription_count() < node.p["min_subscribers"]:
+        missing.append(f"{node.p['min_subscribers']} reader(s) of {m.DISPLACEMENT}")
+    for sub, _ in node.handlers:
+        if node.count_publishers(sub.topic_name) < 1:
+            missing.append(f"publisher of {sub.topic_name}")
+    if node.state_pub.get_subscription_count() < node.p["min_state_subscribers"]:
+        missing.append(f"{node.p['min_state_subscribers']} reader(s) of {m.STATE}")
+    readers = node.diag.readers_missing()
+    if readers:
+        missing.append(readers)
+    if node.clock_pub is not None and node.clock_pub.get_subscription_count() < 1:
+        missing.append(f"reader of {m.CLOCK} (base_motion)")
+    return missing

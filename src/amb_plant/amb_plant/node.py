@@ -50,7 +50,7 @@ from amb_ros.run_config import config_json
 from amb_ros.runtime import RunFailed, run_node
 from amb_ros.state_block import StateBlockDecoder, StateBlockWriter
 
-from .loops import run_lockstep, run_realtime
+from .loops import run_lockstep, run_realtime, wait_connected
 from .report import DisplacementReport, contact_json, contact_summary
 from .sensor import CommandPolicy, SensorModel
 
@@ -301,43 +301,11 @@ class PlantNode(RigNode):
         if not np.isfinite(self.x).all():
             raise RunFailed(f"plant state is no longer finite at step {self.steps} (t = {self.steps * self.Ts:.6g} s)")
 
-    def wait_connected(self) -> None:
-        """Bounded wait until controller and base motion (and min_subscribers readers) are matched."""
-        t0 = time.monotonic()
-        deadline = t0 + self.p["start_timeout_s"]
-        while not self.stop.is_set:
-            missing = self.missing_peers()
-            if not missing:
-                self.connect_s = time.monotonic() - t0
-                return
-            if time.monotonic() > deadline:
-                raise RunFailed(f"no {', '.join(missing)} after {self.p['start_timeout_s']:g} s (start timeout)")
-            if self.diag.due():
-                self.diag.publish(WARN, f"waiting for {', '.join(missing)}", self.values())
-            self.waiter.serve(force=True)
-            time.sleep(0.02)
-
-    def missing_peers(self) -> list[str]:
-        missing = []
-        if self.disp_pub.get_subscription_count() < self.p["min_subscribers"]:
-            missing.append(f"{self.p['min_subscribers']} reader(s) of {m.DISPLACEMENT}")
-        for sub, _ in self.handlers:
-            if self.count_publishers(sub.topic_name) < 1:
-                missing.append(f"publisher of {sub.topic_name}")
-        if self.state_pub.get_subscription_count() < self.p["min_state_subscribers"]:
-            missing.append(f"{self.p['min_state_subscribers']} reader(s) of {m.STATE}")
-        readers = self.diag.readers_missing()
-        if readers:
-            missing.append(readers)
-        if self.clock_pub is not None and self.clock_pub.get_subscription_count() < 1:
-            missing.append(f"reader of {m.CLOCK} (base_motion)")
-        return missing
-
     # -- run and report ---------------------------------------------------------------------------------
     def run(self) -> int:
         code = 0
         try:
-            self.wait_connected()
+            wait_connected(self)
             if not self.stop.is_set:
                 self.t_wall0 = time.monotonic()
                 (run_lockstep if self.mode == "lockstep" else run_realtime)(self)
