@@ -91,6 +91,27 @@ def test_pure_noise_is_insufficient_excitation():
         assert not fit.excited and fit.reason == "no transient above the noise floor"
 
 
+def test_a_transient_barely_above_the_floor_identifies_no_map():
+    """One decaying mode (mu = 0.9) in measurement noise, at amplitudes from under the floor to far above: a fit
+    is excited exactly when its largest singular value is at least MIN_SNR times the floor, and then gives 0.9."""
+    from amb_dynamics.estimator.fit import MIN_SNR
+
+    rng = np.random.default_rng(11)
+    o, noise = rng.standard_normal(120), 1e-3 * rng.standard_normal((120, 16))
+    weak = 0
+    for a in np.geomspace(3e-4, 1e-1, 60):
+        Z = a * np.outer(o, 0.9 ** np.arange(16)) + noise
+        fit = fit_period_map(Z, "none", row_noise=1e-3)
+        ratio = fit.singular_values[0] / fit.noise_floor
+        assert fit.excited == (ratio >= MIN_SNR), (a, ratio, fit.reason)
+        if 1.0 < ratio < MIN_SNR:
+            weak += 1
+            assert "x the noise floor" in fit.reason
+        if ratio > 2 * MIN_SNR:
+            assert abs(fit.rho - 0.9) < 0.02, (a, fit.rho)
+    assert weak >= 2  # the gate was met, not only the floor
+
+
 def test_too_few_periods_and_rank_cap():
     Z = synthetic(MU, 3)
     fit = fit_period_map(Z, "alternating")

@@ -50,6 +50,7 @@ from .refine import refine_fit
 REL_FLOOR = 1e-9  # singular values below this fraction of the data norm are round-off, not signal
 NOISE_FACTOR = 1.5  # noise floor = this times the expected largest singular value of the noise matrix
 PLATEAU_FACTOR = 1.5  # the same safety on the top of the innovation plateau (plateau_floor)
+MIN_SNR = 2.0  # a transient whose largest singular value is under this times the floor identifies no map
 METHODS = ("ls", "tls", "opt")
 
 
@@ -143,6 +144,9 @@ def fit_period_map(
     rank = min(signal_rank, max_rank, free - min_dof)
     if signal_rank == 0:
         return MapFit(empty, np.inf, s, floor, pairs, 0, 0, 0, method, "no transient above the noise floor")
+    if row_noise is not None and s[0] < MIN_SNR * floor:
+        return MapFit(empty, np.inf, s, floor, pairs, signal_rank, 0, 0, method,
+                      f"transient {s[0] / floor:.3g} x the noise floor (under {MIN_SNR:g})")  # fmt: skip
     Xm0, Xp0 = Xm, Xp
     if base == "tls":
         _, _, Wh = np.linalg.svd(np.vstack([Xm, Xp]), full_matrices=False)
