@@ -73,11 +73,12 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
     if token:  # the loop's two topics carry it; a message without it is another run's (docs/topics.md)
         per["plant"]["run_token"] = per["controller"]["run_token"] = token
     bag, live = int(bool(getattr(args, "bag", None))), int(bool(getattr(args, "live", False)))
+    # the count alone can be met by the other host's readers in a split run: amb-rig's collector is also named
+    collector = getattr(args, "collector_name", "")
     for name in NODES:  # amb-rig's collector, the recorder and the live view must hear every final report: one
         # matched reader is not enough when it is the recorder (seen: the collector heard no report of a short run)
         per[name]["min_diagnostics_readers"] = 1 + bag + live  # the plant's also gates its start
-        collector = getattr(args, "collector_name", "")
-        if collector:  # a split run: the other host's readers count too, this side's collector must be one
+        if collector:
             per[name]["diagnostics_collector"] = collector
     if args.rt_priority:  # the loop's nodes only: the monitor and the recorder run beside it (consumer_priority)
         for name in ("base_motion", "controller", "plant"):
