@@ -31,8 +31,7 @@ from .system import COEFFICIENTS, ClosedLoop, PeriodicSystem, coefficient_values
 CHART_STEPS = 32  # Magnus steps per period: converged to < 2e-7 in rho on the seed rotor (tests)
 A_NODES = 6  # first number of Chebyshev amplitudes per row (doubled until the check amplitudes agree)
 AMP_TOL = 1e-10  # |rho_interp - rho_exact| at the check amplitudes
-EXPM_BLOCK = 64  # step exponentials per batch: bounded temporaries, reused by the allocator row after row
-AMP_BLOCK = 8  # amplitudes whose step maps are held at once
+AMP_BLOCK = 4  # amplitudes whose step maps are held at once (bounded temporaries)
 EVEN_COEFFICIENTS = frozenset({"Ox2", "Oy2", "Oz2", "OyOz", "Oyz2"})  # products of two base rates: even in A
 
 
@@ -193,11 +192,8 @@ class _Row:
                 lin = (h / 2) * (c1 + c2)  # (k, N)
                 com = np.array([c2[i] * c1[j] - c2[j] * c1[i] for i, j in pairs]).reshape(len(pairs), N)
                 weights.append(np.vstack([lin, (SQRT3 / 12) * h * h * com]).T)  # Omega_4 = weights @ mats
-            weights = np.concatenate(weights)
-            E = np.empty((weights.shape[0], d, d))
-            for b in range(0, weights.shape[0], EXPM_BLOCK):
-                E[b : b + EXPM_BLOCK] = expm_stack((weights[b : b + EXPM_BLOCK] @ mats).reshape(-1, d, d))
-            out[a0 : a0 + AMP_BLOCK] = _tree_product(E.reshape(-1, N, d, d))
+            E = expm_stack((np.concatenate(weights) @ mats).reshape(-1, N, d, d))
+            out[a0 : a0 + AMP_BLOCK] = _tree_product(E)
         return out
 
     def _coef(self, motion: BaseMotion, t: np.ndarray, names: tuple[str, ...]) -> np.ndarray:

@@ -195,8 +195,7 @@ class ChunkRunner:
             raise box["exc"]
 
     def _dask_body(self, todo: list[int], results: list, done: int) -> None:
-        import dask
-        from distributed import Client, LocalCluster, as_completed
+        from distributed import Client, as_completed
 
         cluster = None
         try:
@@ -206,19 +205,7 @@ class ChunkRunner:
                 except (OSError, TimeoutError) as exc:
                     raise InputError(f"cannot reach the Dask scheduler {self.scheduler}: {exc}") from None
             else:
-                # the nanny's environment for each worker: one BLAS thread, and not Dask's default
-                # MALLOC_TRIM_THRESHOLD_=65536, which made the chart kernel's 4-16 MB temporaries 2-3x slower here
-                with dask.config.set({"distributed.nanny.pre-spawn-environ": dict(BLAS_ENV)}):
-                    cluster = LocalCluster(
-                        n_workers=min(self.workers, len(todo)),
-                        threads_per_worker=1,
-                        processes=True,
-                        host="127.0.0.1",
-                        dashboard_address=None,
-                        env=dict(BLAS_ENV),
-                        silence_logs=40,
-                        preload=[PRELOAD],  # imported as each worker starts (cluster start-up, not compute)
-                    )
+                cluster = local_cluster(min(self.workers, len(todo)))
                 client = Client(cluster, set_as_default=False)
         except OSError as exc:
             _kill_local(cluster)
@@ -243,6 +230,27 @@ class ChunkRunner:
             if cluster is not None:
                 with contextlib.suppress(Exception):
                     cluster.close(timeout=0.5 if not ok else 5)
+
+
+def local_cluster(n_workers: int):
+    """A ``LocalCluster`` of ``n_workers`` processes, one thread and one BLAS thread each, on 127.0.0.1, no
+    dashboard, the chart kernels imported as each worker starts (cluster start-up, not compute)."""
+    import dask
+    from distributed import LocalCluster
+
+    # the nanny's environment for each worker: one BLAS thread, and not Dask's default
+    # MALLOC_TRIM_THRESHOLD_=65536, which made the chart kernel's 4-16 MB temporaries 2-3x slower here
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": dict(BLAS_ENV)}):
+        return LocalCluster(
+            n_workers=n_workers,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+            env=dict(BLAS_ENV),
+            silence_logs=40,
+            preload=[PRELOAD],
+        )
 
 
 def _kill_local(cluster) -> None:

@@ -2,7 +2,9 @@
 
 scipy.linalg.expm accepts stacks but chooses the Pade structure matrix by matrix in Python; the Floquet kernels
 exponentiate hundreds of same-size, similar-norm matrices, so one scaling for the whole stack (from the largest
-1-norm) keeps every matrix within the degree-13 backward-error bound and lets numpy batch the products.
+1-norm) keeps every matrix within the degree-13 backward-error bound and lets numpy batch the products.  The
+stack is taken in blocks of ``BLOCK`` matrices (each with its own scaling): a block's temporaries stay in the
+core's cache (blocks of 64 made a 56-state chart row about 35 % slower on a 2-core Xeon).
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
+BLOCK = 16  # matrices per block
 THETA_13 = 5.371920351148152  # Higham (2005), Table 2.3: ||2^-s X||_1 <= theta_13 -> backward error < 2^-53
 PADE_13 = (
     64764752532480000.0,
@@ -32,6 +35,17 @@ PADE_13 = (
 def expm_stack(X: np.ndarray) -> np.ndarray:
     """expm of every matrix of X, shape (..., d, d)."""
     X = np.asarray(X, dtype=float)
+    if X.ndim == 2:
+        return _expm_block(X[None])[0]
+    flat = X.reshape(-1, *X.shape[-2:])
+    out = np.empty_like(flat)
+    for b in range(0, flat.shape[0], BLOCK):
+        out[b : b + BLOCK] = _expm_block(flat[b : b + BLOCK])
+    return out.reshape(X.shape)
+
+
+def _expm_block(X: np.ndarray) -> np.ndarray:
+    """expm of every matrix of a stack (n, d, d), one scaling for all (from the largest 1-norm)."""
     norm = float(np.abs(X).sum(axis=-2).max()) if X.size else 0.0
     s = max(0, int(np.ceil(np.log2(norm / THETA_13)))) if norm > THETA_13 else 0
     A = X / 2.0**s if s else X
