@@ -1,9 +1,10 @@
 """Live-view cost: the lockstep loop's steps/s without and with ``--live`` (amb-live beside the rig), side by side.
 
-Alternating pairs of ``amb-rig run --json --no-monitor --duration RIG_DURATION`` without and with ``--live
---live-port 0`` (no Foxglove client connected: the view's DDS readers and its conversion of every state block
-run, the WebSocket sends nothing), so that the machine's drift hits both alike; steps/s is the plant's loop rate
-from the summary (start-up excluded).  The cost is the median over the pairs of 1 - with/without.
+Pairs of ``amb-rig run --json --no-monitor --duration RIG_DURATION`` without and with ``--live --live-port 0``
+(no Foxglove client connected: the view's DDS readers and its conversion of every state block run, the
+WebSocket sends nothing), the order swapped from one pair to the next, so that the machine's drift and any
+after-effect of the previous run hit both alike; steps/s is the plant's loop rate from the summary (start-up
+excluded).  The cost is the median over the pairs of 1 - with/without.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from report import record
 BIN = Path(sys.executable).parent
 PAPER = ["--config", str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")]  # a fast plant
 RIG_DURATION = 3.0  # simulated s: 15,000 steps at 5 kHz
-PAIRS = 5
+PAIRS = 8  # run-to-run spread here is several % either way: the median needs many pairs
 
 
 def steps_per_s(live: bool) -> float:
@@ -42,7 +43,10 @@ def steps_per_s(live: bool) -> float:
 def main(pairs: int = PAIRS) -> dict:
     rows = []
     for i in range(pairs):
-        without, with_live = steps_per_s(False), steps_per_s(True)
+        if i % 2:
+            with_live, without = steps_per_s(True), steps_per_s(False)
+        else:
+            without, with_live = steps_per_s(False), steps_per_s(True)
         rows.append((without, with_live))
         print(f"  pair {i + 1}: {without:8,.0f} steps/s without, {with_live:8,.0f} with --live "
               f"({100 * (1 - with_live / without):+.1f} %)", flush=True)  # fmt: skip
