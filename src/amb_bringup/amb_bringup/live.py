@@ -27,6 +27,7 @@ wake-up beside the lockstep loop delays its next hand-over.
 from __future__ import annotations
 
 import argparse
+import copy
 import math
 import signal
 import sys
@@ -160,7 +161,7 @@ class LiveBridge:
 def run(args) -> int:
     import foxglove
     import rclpy
-    from rclpy.qos import QoSProfile, qos_profile_sensor_data
+    from rclpy.qos import qos_profile_sensor_data
     from rclpy.signals import SignalHandlerOptions
 
     from amb_bag.msgdefs import message_class
@@ -182,10 +183,8 @@ def run(args) -> int:
     scheduling = consumer_priority(args.priority)  # after the server and the node: their threads are included
     bridge = LiveBridge(cfg, args.currents)
     qos = {"/stability/unstable": latched_qos(), "/diagnostics": diagnostics_qos()}
-    sensor = QoSProfile(
-        history=qos_profile_sensor_data.history, depth=DRAIN_DEPTH, reliability=qos_profile_sensor_data.reliability,
-        durability=qos_profile_sensor_data.durability,
-    )  # fmt: skip
+    sensor = copy.copy(qos_profile_sensor_data)
+    sensor.depth = DRAIN_DEPTH
     clock = node.get_clock()
     for topic in bridge.forward:
         node.create_subscription(
