@@ -32,7 +32,7 @@ def _lockstep(tmp_path, venv_bin, item: str):
             tmp_path,
             venv_bin,
             ["--duration", str(DURATION_S), "--motion", "none", "--no-monitor", "--set", item,
-             "--param", "plant:min_subscribers=2"],
+             "--param", "plant:min_subscribers=2", "--param", "controller:min_subscribers=2"],
         )  # fmt: skip
     finally:
         rec.close()

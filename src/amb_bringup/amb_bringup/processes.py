@@ -98,6 +98,7 @@ def node_parameters(args) -> tuple[dict, dict[str, dict]]:
     monitor_imu = monitor and not per["monitor"].get("period_s")  # a given period: the monitor reads no /base/imu
     gates = {
         ("plant", "min_subscribers"): 1 + bag + sensor_only,  # the controller, the recorder, the monitor
+        ("controller", "min_subscribers"): (0 if args.no_plant else 1) + bag,  # /amb/current: the plant, the recorder
         ("plant", "min_state_subscribers"): bag + (monitor and not sensor_only),
         ("base_motion", "min_rates_subscribers"): (0 if args.no_plant else 1) + bag,  # lockstep: the plant's input
         ("base_motion", "min_imu_subscribers"): bag + monitor_imu,

@@ -64,6 +64,8 @@ def specs() -> list[ParamSpec]:
         ParamSpec("trigger", "sample", "realtime: compute on each sample's arrival (sample, as an ADC interrupt does) "
                   "or on the controller's own wall-clock ticks (timer: up to one sample of extra delay)",
                   choices=("sample", "timer")),
+        ParamSpec("min_subscribers", 1, "lockstep: readers of /amb/current matched before the first answer (the "
+                  "plant, a recorder): a reader still being discovered would miss the first currents", "", 0, 100),
         ParamSpec("sensor_timeout_s", 0.1, "no new sample for this long: zero current and ERROR (realtime)", "s",
                   1e-4, 3600.0),
         ParamSpec("fail_at_s", -1.0, "rehearse a controller failure: zero current from this time on (a drop onto "
@@ -91,6 +93,7 @@ SAMPLE_WINDOW = 64
 GAIN_PARAMS = ("proportional_gain", "derivative_gain", "integral_gain", "safe_proportional_gain",
                "safe_derivative_gain")  # fmt: skip
 FIRST_SAMPLE_WINDOW = 50_000
+READER_WAIT_S = 5.0  # lockstep: the longest wait for the readers of /amb/current before the first answer
 
 
 class ControllerNode(RigNode):
@@ -191,6 +194,17 @@ class ControllerNode(RigNode):
                 f"/stability/unstable: switched to the safe gains at t = {self.safe_switch_t:.6g} s"
             )
 
+    def wait_for_readers(self) -> None:
+        """Lockstep, before the first current: the plant waits for this answer, so waiting (bounded) costs no
+        sample, while a reader matched after it would never get it (volatile)."""
+        deadline = time.monotonic() + READER_WAIT_S
+        while self.pub.get_subscription_count() < self.p["min_subscribers"] and not self.stop.is_set:
+            if time.monotonic() > deadline:
+                n, want = self.pub.get_subscription_count(), self.p["min_subscribers"]
+                self.get_logger().warning(f"{m.CURRENT}: {n} reader(s) after {READER_WAIT_S:g} s, {want} expected")
+                return
+            time.sleep(0.002)
+
     # -- receive ------------------------------------------------------------------------------------
     def on_sample(self, raw: bytes) -> None:
         got = self.counters.decode(m.DISPLACEMENT, self.decoder, raw)
@@ -226,6 +240,8 @@ class ControllerNode(RigNode):
         self.answer(t_ns, y, k * self.Ts)
 
     def answer(self, t_ns: int, y: np.ndarray, t: float) -> None:
+        if self.answered == 0 and self.mode == "lockstep":
+            self.wait_for_readers()
         t0 = time.perf_counter()
         if self.live.pending or self.live.schedule:
             self.live.at_sample(t_ns)
