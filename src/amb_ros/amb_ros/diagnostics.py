@@ -131,12 +131,14 @@ class Diagnostics:
         self.published += 1
         self._next_ns = time.monotonic_ns() + self.period_ns
 
-    def publish_final(self, level: bytes, message: str, values: dict[str, str], timeout_s: float = 2.0) -> None:
+    def publish_final(self, level: bytes, message: str, values: dict[str, str], timeout_s: float = 4.0) -> None:
         """Publish the last status and wait (bounded by ``timeout_s`` in all) until every matched reader has it.
 
         /diagnostics is volatile: a reader that this publisher has not matched yet would never get the report, and
         a short run can end before discovery has completed (seen: amb-rig's collector missed base_motion's and the
-        controller's every report).  So first wait for the readers of ``readers_missing``."""
+        controller's every report).  So first wait for the readers of ``readers_missing``: up to 4 s by default,
+        longer than Fast DDS's 3 s announcement period, so that a pair of participants that missed each other's
+        initial announcements (processes starting together) is matched by the next periodic one in time."""
         deadline = time.monotonic() + timeout_s
         while self.readers_missing() and time.monotonic() < deadline:
             time.sleep(0.01)
