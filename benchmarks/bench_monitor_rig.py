@@ -7,7 +7,8 @@ every 25 steps, angle wrapped to [0, 2 pi) as the plant publishes it).  Scenario
 
 * run-up 500 -> 1500 rpm in 20 s on a static base (the monitor's static-base window: period 0.1 s, 16 periods),
   full state and sensor-only: no flag may go up (the speed nears the 166 rad/s mode at the end);
-* the tongue point pitch 0.6 rad at 21.8 rad/s (model max|mu| 1.0606 per T = pi/omega at 1000 rpm) while the speed
+* the tongue point pitch 0.6 rad at 21.8 rad/s (model max|mu| 1.0560 per T = pi/omega at 1000 rpm, the loop
+  linearised at the levitated operating point; 1.0606 about the centred law) while the speed
   rises slowly, 1000 -> 1060 rpm at 10 rpm/s: the flag must still go up; its time in base periods is printed;
 * Monte Carlo (stability_monitor/montecarlo.py, on a local Dask cluster of 2 workers): MC_RUNS runs at the tongue
   point (6 s each) and at the stable default point (100 periods T each), noise seeds and the disk's unbalance phase
@@ -29,9 +30,9 @@ from amb_dynamics.dask_exec import ChunkRunner
 from stability_monitor.model_check import model_multiplier
 from stability_monitor.montecarlo import MODES, mc_run, monitor, simulate
 
-TONGUE = ("base_motion.amplitude=0.6", "base_motion.frequency=21.8")  # model max|mu| 1.0606 per T = pi/omega
-STABLE = ()  # the config's own pitch 0.3 rad at 24.5 rad/s: model 0.99736
-MC_RUNS = 12  # per scenario (the issue asks 100: ~25 min more on 2 cores)
+TONGUE = ("base_motion.amplitude=0.6", "base_motion.frequency=21.8")  # model max|mu| 1.0560 per T = pi/omega
+STABLE = ()  # the config's own pitch 0.3 rad at 24.5 rad/s: model 0.99711
+MC_RUNS = 100  # per scenario: about 13 min on 2 local workers
 ACCURACY_PERIODS = 32
 
 
@@ -61,6 +62,7 @@ def monte_carlo(runs: int = MC_RUNS, workers: int = 2) -> dict:
             out[key] = {"model_rho": rho_model, "flag_base_periods": flags.tolist(), "cost_us": cost * 1e6,
                         "accuracy_32T": acc, "wall_s": wall}  # fmt: skip
             raised = flags[np.isfinite(flags)]
+            p99 = np.percentile(np.nan_to_num(flags, nan=np.inf), 99)  # a run never flagged counts as infinite
             if name == "tongue":
                 p50, p90 = (np.percentile(raised, q) if raised.size else float("nan") for q in (50, 90))
                 print(f"Monte Carlo, tongue (model {rho_model:.4f}), {mode}: {raised.size}/{runs} flagged; within 16 "
@@ -68,8 +70,11 @@ def monte_carlo(runs: int = MC_RUNS, workers: int = 2) -> dict:
                       f"{p90:.2f}, max {raised.max() if raised.size else float('nan'):.2f} base periods; "
                       f"{cost * 1e6:.0f} us per sample")  # fmt: skip
                 record(f"real rig Monte Carlo, tongue (0.6 rad, 21.8 rad/s, model {rho_model:.4f}), {mode}: flag "
-                       f"after ({runs} runs, seeds and unbalance phase drawn)", flags.tolist(), "base periods",
-                       goal="<= 8 (rho >= 1.05)")  # fmt: skip
+                       f"after ({runs} runs, seeds and unbalance phase drawn; p99 {p99:.2f})",
+                       flags.tolist(), "base periods", goal="<= 8 (rho >= 1.05)")  # fmt: skip
+                record(f"real rig Monte Carlo, tongue, {mode}: runs flagged within 8 base periods (within 16: "
+                       f"{100.0 * np.mean(flags <= 16):.0f} %)", [100.0 * np.mean(flags <= 8)], "% of runs",
+                       goal=">= 99")  # fmt: skip
             else:
                 print(f"Monte Carlo, stable (model {rho_model:.5f}), {mode}: {raised.size}/{runs} false alarms in "
                       f"100 periods T each; |rho_hat - model| after {ACCURACY_PERIODS} T: "
@@ -99,7 +104,7 @@ def main() -> dict:
               f"{cost * 1e6:.1f} us per sample (simulation {sim_s:.0f} s)")  # fmt: skip
         record(f"false alarms, real rig run-up 500 -> 1500 rpm in 20 s, static base ({mode})",
                [int(pl.flag_time is not None)], "runs", goal="0")  # fmt: skip
-    A, W = 0.6, 21.8
+    A, W = 0.6, 21.8  # model 1.0560 at 1000 rpm
     slow = ["spin.profile=ramp", "spin.start_rpm=1000", "spin.end_rpm=1060", "spin.rate_rpm_s=10"]
     cfg, model, run, sim_s = simulate(slow, ("pitch", A, W), 6.0)
     base_period = 2 * math.pi / W
@@ -107,7 +112,7 @@ def main() -> dict:
         pl, ests, cost = monitor(cfg, model, run, mode == "sensor", math.pi / W, "two_periods")
         flag = None if pl.flag_time is None else pl.flag_time / base_period
         res[f"tongue_ramp_{mode}"] = {"flag_base_periods": flag, "final_rho": ests[-1].fit.rho if ests else None}
-        print(f"pitch {A} rad at {W} rad/s (model 1.0606 at 1000 rpm) while 1000 -> 1060 rpm at 10 rpm/s, {mode}: "
+        print(f"pitch {A} rad at {W} rad/s (model 1.0560 at 1000 rpm) while 1000 -> 1060 rpm at 10 rpm/s, {mode}: "
               f"flag after {flag if flag is None else round(flag, 2)} base periods")  # fmt: skip
         record(f"real rig tongue point (0.6 rad, 21.8 rad/s) during a 10 rpm/s ramp ({mode}): flag after",
                [flag if flag is not None else float("inf")], "base periods", goal="<= 16")  # fmt: skip

@@ -67,7 +67,7 @@ def _crit(Psi: np.ndarray, r: int, T: float) -> tuple[np.ndarray, np.ndarray]:
 def ratio_row(loop: SampledLoop, kind: str, omega: float, T: float, p: int, r: int, amps: np.ndarray):
     """rho and critical frequency per base period at the exact ratio T/Ts' = p/r, with the amplitude check error."""
     Ts = r * T / p
-    sub = SampledLoop(loop.model, loop.cfg, Ts=Ts, delay_samples=loop.delay, forcing=False)
+    sub = loop.sub_loop(Ts)
     axis = np.zeros(3)
     axis[{"roll": 0, "yaw": 1, "pitch": 2}[kind]] = 1.0
     amax = float(np.abs(amps).max())

@@ -101,7 +101,7 @@ def estimate_point(loop: SampledLoop, motion: BaseMotion, period: float) -> dict
         return data
     results: list[FloquetResult] = []
     for p, r in plan.ratios:
-        sub = SampledLoop(loop.model, loop.cfg, Ts=r * period / p, delay_samples=loop.delay, forcing=False)
+        sub = loop.sub_loop(r * period / p)
         results.append(sampled_floquet(sub, motion, period))
     rho, bound = plan.combine([res.max_abs for res in results])
     nearest = min(range(3), key=lambda i: abs(plan.ratios[i][0] - x))

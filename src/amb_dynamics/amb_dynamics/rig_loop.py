@@ -14,7 +14,7 @@ from .amb import DiscretePID, DiscretePIDCoefficients
 from .config import RotorConfig
 from .control_runtime import ControlLaw, new_control_law
 from .motion import BaseMotion
-from .operating_point import operating_point
+from .operating_point import operating_point, tangent_gains
 from .rig_plant import RigPlant
 from .structure import StructuralModel
 
@@ -60,6 +60,15 @@ def start_gain(cfg: RotorConfig, gains, Ts: float) -> np.ndarray:
     """Current per displacement of the controller's first step (the PID: -kp; :class:`ControlLaw.start_gain`)."""
     law = control_law_runtime(cfg, gains, Ts, None)
     return law.start_gain if isinstance(law, ControlLaw) else -gains.kp * np.eye(4)
+
+
+def levitated_bearing(model: StructuralModel, cfg: RotorConfig, Ts: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """(ki, ks) per AMB axis of a nonlinear bearing law linearised at the levitated operating point (gravity and
+    the bias-current offsets load it: :mod:`amb_dynamics.operating_point`); None for a linear law, whose
+    constants hold everywhere.  The loop the plant node runs about that point (``SampledLoop(bearing=...)``)."""
+    if cfg.bearings.force_law != "nonlinear":
+        return None
+    return tangent_gains(cfg, operating_point(model, cfg, start_gain(cfg, model.gains, Ts)))
 
 
 def levitated_state(plant: RigPlant, cfg: RotorConfig) -> np.ndarray:

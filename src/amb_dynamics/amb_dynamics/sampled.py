@@ -162,15 +162,24 @@ class SampledLoop:
         delay_samples: int | None = None,
         forcing: bool | None = None,
         dynamics: PlantDynamics | None = None,
+        bearing: tuple[np.ndarray, np.ndarray] | None = None,
     ):
         self.Ts = Ts if Ts is not None else 1.0 / cfg.controller.rate_hz
         self.cfg, self.model = cfg, model
         self.delay = cfg.controller.delay_samples if delay_samples is None else delay_samples
         self.plant = PlantStepper(model, cfg, self.Ts, forcing=forcing, dynamics=dynamics)
+        # per-axis (ki, ks) in place of the config's (a nonlinear law at its operating point); kept by sub_loop
+        self.bearing = bearing
+        if bearing is not None:
+            self.plant.set_bearing_gains(*bearing)
         self.pid_coeffs = DiscretePIDCoefficients.from_gains(model.gains, self.Ts)
         self.plain_pid = is_plain_pid(cfg)
         # its linear form: X = [xp; controller state], x_k+1 = Ak x_k + Bk y_k, u_k = Ck x_k + Dk y_k
         self.controller = discrete_controller(cfg, model.gains, self.Ts, self.delay)
+
+    def sub_loop(self, Ts: float) -> SampledLoop:
+        """The same loop (model, config, delay, bearing gains; forcing off) sampled at ``Ts``."""
+        return SampledLoop(self.model, self.cfg, Ts=Ts, delay_samples=self.delay, forcing=False, bearing=self.bearing)
 
     def new_controller(self, current_limit: float | None = None) -> DiscretePID | ControlLaw:
         return new_control_law(self.cfg, self.pid_coeffs, current_limit, self.delay)

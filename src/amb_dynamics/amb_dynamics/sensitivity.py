@@ -29,7 +29,6 @@ from scipy.optimize import minimize_scalar
 from .config import RotorConfig
 from .control_law import continuous_controller, discrete_controller, discrete_pid_state_space, pid_state_space  # noqa: F401  (re-exported)
 from .errors import InputError
-from .operating_point import operating_point, tangent_gains
 from .sampled import PlantStepper
 from .state_space import StateSpace
 from .state_space import close_loop as sensitivity_state_space
@@ -64,11 +63,11 @@ def _stepper(model: StructuralModel, cfg: RotorConfig, Ts: float) -> PlantSteppe
     """The plant node's generator, its bearing law linearised at the levitated operating point (gravity, bias
     offsets: :mod:`amb_dynamics.operating_point`) where that differs from the centre (a nonlinear law)."""
     stepper = PlantStepper(model, cfg, Ts, forcing=False)
-    if cfg.bearings.force_law == "nonlinear":
-        from .rig_loop import start_gain
+    from .rig_loop import levitated_bearing
 
-        op = operating_point(model, cfg, start_gain(cfg, model.gains, 1.0 / cfg.controller.rate_hz))
-        stepper.set_bearing_gains(*tangent_gains(cfg, op))
+    bearing = levitated_bearing(model, cfg, 1.0 / cfg.controller.rate_hz)
+    if bearing is not None:
+        stepper.set_bearing_gains(*bearing)
     return stepper
 
 

@@ -176,6 +176,7 @@ def recorded_motion(t: np.ndarray, W: np.ndarray, base_period: float) -> BaseMot
 def model_value(analysis: Analysis, cfg) -> dict:
     """Sampled-data model multipliers for the recorded base motion and the given rotor config."""
     from amb_dynamics.digital_floquet import estimate_point
+    from amb_dynamics.rig_loop import levitated_bearing
     from amb_dynamics.sampled import SampledLoop
     from amb_dynamics.structure import build_structure
 
@@ -192,7 +193,8 @@ def model_value(analysis: Analysis, cfg) -> dict:
     h = motion.harmonics[0]
     # the period of A(t) for the refined frequency (the estimate's kind: base period or half of it)
     period = pe.period * (2.0 * np.pi / pe.base_period) / h.frequency
-    loop = SampledLoop(build_structure(cfg), cfg, Ts=Ts, forcing=False)
+    model = build_structure(cfg)  # the loop about the rig's operating point (a nonlinear law's tangent there)
+    loop = SampledLoop(model, cfg, Ts=Ts, forcing=False, bearing=levitated_bearing(model, cfg, Ts))
     res = estimate_point(loop, motion, period)  # exact for T/Ts = p/r, else interpolated with a bound
     return {
         "rho": res["max_abs_multiplier"],

@@ -1,7 +1,8 @@
 """The live monitor's model value and its "model mismatch" check.
 
 The model value is the sampled-data multiplier of the config's own loop (amplifier, sensor, controller rate and
-delay; ``SampledLoop``, forcing off) on the config's base motion, per period of A(t): the value an engineer would
+delay; ``SampledLoop``, forcing off; a nonlinear bearing law linearised at the levitated operating point,
+``rig_loop.levitated_bearing``) on the config's base motion, per period of A(t): the value an engineer would
 look up in a chart before the run (``digital_floquet.estimate_point``: exact for T/Ts = p/r, else interpolated in
 T/Ts with a stated bound).  It is computed once, in a background thread started after the monitor has taken its
 scheduling (SCHED_IDLE by default: it only uses CPU the loop leaves), so the monitor starts estimating at once.
@@ -85,6 +86,7 @@ def model_multiplier(cfg: RotorConfig) -> tuple[float, float, float]:
     from amb_dynamics.digital_chart import parametric_period
     from amb_dynamics.digital_floquet import estimate_point
     from amb_dynamics.motion import BaseMotion
+    from amb_dynamics.rig_loop import levitated_bearing
     from amb_dynamics.sampled import SampledLoop
     from amb_dynamics.structure import build_structure
 
@@ -93,7 +95,8 @@ def model_multiplier(cfg: RotorConfig) -> tuple[float, float, float]:
         raise ValueError("no model value: the config's base motion is not one harmonic about one axis")
     h = motion.harmonics[0]
     Ts = max(1, round(1e9 / cfg.controller.rate_hz)) / 1e9  # the nodes' whole-ns sample period
-    loop = SampledLoop(build_structure(cfg), cfg, Ts=Ts, forcing=False)
+    model = build_structure(cfg)  # the loop about the rig's operating point (a nonlinear law's tangent there)
+    loop = SampledLoop(model, cfg, Ts=Ts, forcing=False, bearing=levitated_bearing(model, cfg, Ts))
     period = parametric_period(loop, h.axis, h.frequency)
     res = estimate_point(loop, motion, period)
     rho, bound = float(res["max_abs_multiplier"]), float(res["error_bound"])
