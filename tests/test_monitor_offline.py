@@ -140,19 +140,23 @@ def monitor(venv_bin, *args):
     return subprocess.run([str(venv_bin / "amb-monitor"), *map(str, args)], capture_output=True, text=True, timeout=120)
 
 
-def test_pipeline_equals_the_estimator_on_the_same_samples(run_data):
-    """Period found from the base rates (snapped to 718 samples) + buffering = the estimator run directly."""
+@pytest.mark.parametrize("velocities", [False, True])
+def test_pipeline_equals_the_estimator_on_the_same_samples(run_data, velocities):
+    """Period found from the base rates (snapped to 718 samples) + buffering = the estimator run directly, on the
+    positions of the state (the default) or on the whole state (``velocities``)."""
     run, model = run_data["run"], run_data["model"]
     groups = tuple([0] * model.n + [1] * model.n)
-    pipe = MonitorPipeline(MonitorSettings(base_forcing=True), groups)  # forcing model from /base/imu
+    pipe = MonitorPipeline(MonitorSettings(base_forcing=True, velocities=velocities), groups)  # forcing from /base/imu
     got = []
     for k, t in enumerate(run.t):
         got += pipe.on_imu(t, run_data["Omega"][k])
         got += pipe.on_sample(t, run.x[k])
     assert pipe.period_estimate.period == N * run_data["Ts"] and pipe.period_estimate.snapped
     assert pipe.forcing == "alternating"
-    cfg = EstimatorConfig(N * run_data["Ts"], run_data["Ts"], forcing="alternating", scale_groups=groups)
-    ref = estimate_series(run.t, run.x, cfg)
+    used = run.x if velocities else run.x[:, : model.n]
+    cfg = EstimatorConfig(N * run_data["Ts"], run_data["Ts"], forcing="alternating",
+                          scale_groups=groups if velocities else (0,) * model.n)  # fmt: skip
+    ref = estimate_series(run.t, used, cfg)
     assert len(got) == len(ref) > 40
     assert [e.time for e in got] == [e.time for e in ref]
     assert np.array_equal([e.fit.rho for e in got], [e.fit.rho for e in ref], equal_nan=True)

@@ -10,10 +10,8 @@ T/Ts = 720, 721, 722), which the test computes itself.
 The monitor (full state, synchronous model from the tachometer, forcing `two_periods` for gravity) must raise
 the flag within 16 base-motion periods (2 pi / omega each); the recorded bag replayed into `amb-monitor analyze`
 must give the live estimate, the model value, and with the four AMB displacements only (sensor-only) a flag
-within 16 base periods as well.  At (0.4, 22.3), where the same model gives 1.0105,
-the 6 s run leaves the growing mode inside the force-noise innovations: the monitor answers "insufficient
-excitation" there, which is what it should say (docs/monitor.md).  At the default stable point (0.3, 24.5) the
-same 6 s run must raise no flag, and the monitor's model value must be the config's.
+within 16 base periods as well.  At the default stable point (0.3, 24.5) the same 6 s run must raise no flag,
+the monitor's model value must be the config's, and its estimate must agree with it (no mismatch).
 """
 
 from __future__ import annotations
@@ -22,6 +20,7 @@ import json
 import math
 import subprocess
 
+import numpy as np
 import pytest
 
 from amb_dynamics.config import load_config
@@ -53,9 +52,7 @@ def test_real_rig_tongue_point_raises_the_flag(venv_bin, tmp_path):
     assert st["unstable"] is True, st
     base_period = 2 * math.pi / W
     assert st["flag_raised_at_s"] <= 16 * base_period, st
-    # the estimate is above 1 by more than its margin; the touchdown contacts at the end (the rotor grows into
-    # its backup bearings) bend the last windows, so the bound on its value is loose
-    assert 1.02 < st["rho"] < model["max_abs_multiplier"] + 0.05, st
+    assert st["rho"] > 1.02, st  # the last estimate; its windows may hold touchdown contacts (see below)
 
     # ISO 14839-2 grade of the run's last second: a rotor that reached its backup bearings (C_min) is in zone D
     zones = {a: v["zone"] for a, v in s["vibration"]["axes"].items()}
@@ -73,6 +70,14 @@ def test_real_rig_tongue_point_raises_the_flag(venv_bin, tmp_path):
     replay = analyze(venv_bin, bag)
     assert replay["flag_time_s"] == pytest.approx(st["flag_raised_at_s"], abs=1e-9)
     assert f"{replay['final']['rho']:.6f}" == mon["rho"]
+    # while the rotor is in its air gap the estimate is the model's within the monitor's mismatch allowance,
+    # 0.25 (rho - 1): the median of the refits before the first touchdown (the last ones see the bearing law's
+    # nonlinearity as the orbit nears the backup bearings, and the contacts bend the windows after them)
+    plant = s["nodes"]["plant"]["values"]
+    first_touch = float(plant["first touchdown"].split()[2]) if int(plant["touchdown contacts"]) else math.inf
+    free = [e["rho"] for e in replay["estimates"] if e["excited"] and e["time_s"] < first_touch]
+    rho_free, rho_model = float(np.median(free)), model["max_abs_multiplier"]
+    assert abs(rho_free - rho_model) < 0.25 * (rho_model - 1.0), (rho_free, rho_model)
     # on the complete bag; the motion is the one refitted from the recorded base rates (amplitude, frequency)
     assert replay["model"]["rho"] == pytest.approx(model["max_abs_multiplier"], abs=1e-8)
     # sensor-only (the four AMB displacements a real rig has), same signals: flagged within 16 base periods too
@@ -110,3 +115,5 @@ def test_real_rig_stable_point_raises_no_flag(venv_bin, tmp_path):
     assert s["verdict"]["result"] != "unstable", s["verdict"]
     assert st["model_rho"] == pytest.approx(model["max_abs_multiplier"], abs=1e-6)
     assert st["model_mismatch"] is False
+    # the full state's positions identify the slowest mode: the issue's accuracy, |rho_hat - rho| <= 0.005
+    assert st["rho"] is not None and abs(st["rho"] - model["max_abs_multiplier"]) <= 0.005, st

@@ -36,6 +36,8 @@ def analyze_parser() -> argparse.ArgumentParser:
     p.add_argument("--synchronous", type=int, default=-1, metavar="H", help="spin harmonics of the synchronous "
                    "response removed with /amb/spin_speed's angle; -1 (default): 1 if --config has unbalance or "
                    "runout and the bag has the tachometer")  # fmt: skip
+    p.add_argument("--velocities", action="store_true", help="full state: fit the velocities too (default: the "
+                   "positions only)")  # fmt: skip
     p.add_argument("--phases", type=int, default=D.phases)
     p.add_argument("--window", type=int, default=D.window, help="periods in the moving window")
     p.add_argument("--updates-per-period", type=int, default=D.updates_per_period)
@@ -76,6 +78,7 @@ def analyze(argv: list[str]) -> int:
         base_forcing=cfg.base_forcing,
         gravity=cfg.gravity.enabled,
         synchronous=synchronous_harmonics(args.synchronous, cfg),
+        velocities=args.velocities,
         period=args.period,
         forcing=args.forcing,
         phases=args.phases,

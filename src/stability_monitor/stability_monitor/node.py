@@ -74,6 +74,8 @@ def specs() -> list[ParamSpec]:
                   "else from /base/imu", choices=FORCING_CHOICES),
         ParamSpec("synchronous", -1, "spin harmonics of the synchronous response (unbalance, runout) removed with "
                   "the angle from /amb/spin_speed; -1 = auto: 1 when the config has unbalance or runout", "", -1, 8),
+        ParamSpec("velocities", D.velocities, "input state: fit the velocities too (default: the positions only; the "
+                  "phases of a period observe the velocities)"),
         ParamSpec("phases", D.phases, "phases sampled per period", "", 1, 4096),
         ParamSpec("window_periods", D.window, "periods in the moving window", "", 3, 10000),
         ParamSpec("updates_per_period", D.updates_per_period, "refits per period", "", 1, 4096),
@@ -125,6 +127,7 @@ class MonitorNode(RigNode):
             static_wait=p["static_wait_s"],
             static_period=p["static_period_s"],
             synchronous=synchronous_harmonics(p["synchronous"], self.cfg),
+            velocities=p["velocities"],
         )
         self.pipeline = MonitorPipeline(self.settings)  # scale groups set once the first sample names the channels
         if self.input == "displacement":

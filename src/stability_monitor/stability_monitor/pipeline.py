@@ -79,6 +79,11 @@ class MonitorSettings:
         tachometer (``on_spin``, unwrapped with the mean speed between its samples); 0 = none.  Each sample
         waits for the tachometer sample at or after its stamp and takes the angle interpolated between the two
         around it (cubic Hermite in angle and speed).
+    velocities : bool
+        With a full-state input ([q; q'], scale groups 0 and 1), fit the velocities too.  Off (the default): the
+        positions q only.  The P phases of a period already observe the velocities (a delay embedding), and the
+        velocities of the fast, noise-driven modes are what the innovation plateau is made of: on the real-rig
+        config the positions alone identify the growing mode about twice as early (docs/monitor.md).
     """
 
     sensor_only: bool = False
@@ -100,6 +105,7 @@ class MonitorSettings:
     static_period: float = 0.1
     max_buffer: int = 400_000
     synchronous: int = 0
+    velocities: bool = False
 
     def __post_init__(self):
         if self.forcing not in FORCING_CHOICES:
@@ -117,6 +123,7 @@ class MonitorPipeline:
     def __init__(self, settings: MonitorSettings, scale_groups: tuple[int, ...] | None = None):
         self.s = settings
         self.scale_groups = scale_groups
+        self._keep: np.ndarray | None = None  # the channels fitted (positions of a full state), fixed at sample 1
         self.restarts = 0
         self.reset()
 
@@ -209,8 +216,11 @@ class MonitorPipeline:
             self.restarts += 1
             self.reset()
         self._last_t = float(t)
+        values = np.asarray(values, dtype=float)
+        if self.samples == 0 and self.restarts == 0:
+            self._keep = self._fitted_channels(values.size)
+        values = values[self._keep] if self._keep is not None else values.copy()
         self.samples += 1
-        values = np.asarray(values, dtype=float).copy()
         if not self.s.synchronous:
             return self._accept(float(t), values, None)
         if self._tach and self._tach[-1][0] >= t and not self._pending:
@@ -220,6 +230,14 @@ class MonitorPipeline:
                              "set synchronous to 0 or publish the spin angle")  # fmt: skip
         self._pending.append((float(t), values))
         return []
+
+    def _fitted_channels(self, size: int) -> np.ndarray | None:
+        """Indices of the positions of a full-state input ([q; q'] with scale groups 0 and 1) unless
+        ``velocities``; None: every channel."""
+        groups = None if self.scale_groups is None else np.asarray(self.scale_groups)
+        if self.s.velocities or self.s.sensor_only or groups is None or groups.size != size or not (groups == 1).any():
+            return None
+        return np.flatnonzero(groups == 0)
 
     def _accept(self, t: float, values: np.ndarray, angle: float | None) -> list[Estimate]:
         """A sample with its spin angle (None without the synchronous model): into the estimator or the buffer."""
@@ -275,7 +293,7 @@ class MonitorPipeline:
             method=self.s.method,
             max_rank=self.s.max_rank,
             noise_std=None if self.s.noise_std < 0 else self.s.noise_std,
-            scale_groups=self.scale_groups,
+            scale_groups=self.scale_groups if self._keep is None else (0,) * self._keep.size,
             policy=VerdictPolicy(self.s.margin, self.s.hysteresis, self.s.z, self.s.confirm),
         )
         channels = self._buffer[0][1].size
