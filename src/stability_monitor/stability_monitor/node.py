@@ -51,6 +51,7 @@ from amb_ros.qos import data_qos, latched_qos, reliable_qos
 from amb_ros.runtime import run_node
 from amb_ros.scheduling import PRIORITIES, consumer_priority
 
+from .gaps import SampleGaps
 from .messages import JointStateInput, StateBlockInput, multipliers_message
 from .model_check import ModelValue
 from .pipeline import FORCING_CHOICES, MonitorPipeline, MonitorSettings, synchronous_harmonics
@@ -154,8 +155,7 @@ class MonitorNode(RigNode):
         self.flag_pub.publish(Bool(data=False))
         self.counters.published[UNSTABLE] = 1
         self.cost = Timings()
-        self.lost = 0
-        self.last_t_ns: int | None = None
+        self.gaps = SampleGaps(self.Ts_ns)  # samples missing from the stream (jitter-proof in realtime)
         self.error = ""
         self.live = LiveParams(self, [s for s in specs() if s.runtime], self.retune)
         self.model = ModelValue(self.cfg) if p["model_check"] else None
@@ -196,16 +196,13 @@ class MonitorNode(RigNode):
             t0 = time.perf_counter()
             if self.live.pending or self.live.schedule:
                 self.live.at_sample(t_ns)
-            Ts = self.pipeline.sample_time
-            if Ts is not None and self.last_t_ns is not None and t_ns > self.last_t_ns:
-                self.lost += max(0, round((t_ns - self.last_t_ns) * 1e-9 / Ts) - 1)
             try:
                 estimates = self.pipeline.on_sample(t_ns * 1e-9, values)
             except InputError as exc:
                 self.counters.reject(self.topic, str(exc))
                 self.error = str(exc)
                 return
-            self.last_t_ns = t_ns
+            self.gaps.add(t_ns)
             self.publish(estimates)
             self.cost.add(time.perf_counter() - t0)
 
@@ -254,7 +251,8 @@ class MonitorNode(RigNode):
         level, message = self.status()
         self.diag.publish_final(level, message, self.values())
         pl = self.pipeline
-        print(f"stability_monitor: {pl.samples} samples ({self.lost} lost), {pl.refits} refits; {message}", flush=True)
+        lost = self.gaps.lost
+        print(f"stability_monitor: {pl.samples} samples ({lost} lost), {pl.refits} refits; {message}", flush=True)
         return 0
 
     def status(self) -> tuple[bytes, str]:
@@ -300,7 +298,7 @@ class MonitorNode(RigNode):
             {
                 "input": self.input,
                 Monitor.unstable.text: str(self.flag).lower(),
-                Monitor.samples_lost.text: str(self.lost),
+                Monitor.samples_lost.text: str(self.gaps.lost),
             }
         )
         if pl.samples:
