@@ -97,7 +97,7 @@ def test_a_briefly_matched_publisher_is_counted_and_fails_the_run(tmp_path, venv
 def test_a_future_stamp_and_a_flood_with_the_run_token_leave_the_loop_unharmed(tmp_path, venv_bin, seed_config_path):
     """Over DDS, during a lockstep run: a publisher that knows the run token (a misconfigured bridge) sends one
     /amb/displacement sample stamped t = 1000 s, then a flood of 4,000 samples with random stamps as fast as rclpy
-    publishes them (about 4,000/s here; 10k/s would need a faster publisher than Python's).
+    publishes them (the rate is printed: 4,000-13,000/s on this machine).
     Before: the future stamp wedged the controller (it counted ~5 million samples lost and rejected every real
     sample).  Now the controller rejects each as out of its window, answers every real sample (none lost), and
     amb-rig stops the run naming the intruder."""
@@ -121,7 +121,9 @@ def test_a_future_stamp_and_a_flood_with_the_run_token_leave_the_loop_unharmed(t
             msg.header.stamp.sec = 1000  # t = 1000 s
             pub.publish(msg)
             sent, t0 = 1, time.monotonic()
-            for k in rng.integers(10 * SAMPLE_WINDOW, 10**7, size=4000):  # far beyond any window of this stream
+            # far beyond any window of this stream: a 30 s run at 5 kHz ends before step 150,000 (stamps drawn from
+            # 10 * SAMPLE_WINDOW up landed within the 64 steps ahead of the stream in ~3 % of runs: taken as real)
+            for k in rng.integers(max(10 * SAMPLE_WINDOW, 10**6), 10**7, size=4000):
                 msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(k) * ts_ns, 10**9)
                 pub.publish(msg)
                 sent += 1
@@ -137,7 +139,10 @@ def test_a_future_stamp_and_a_flood_with_the_run_token_leave_the_loop_unharmed(t
     assert code == 1, text[-3000:]
     ctl, plant = s["nodes"]["controller"]["values"], s["nodes"]["plant"]["values"]
     assert ctl["samples lost"] == "0", ctl
-    assert 1 <= int(ctl["samples out of window"]) <= sent, ctl  # each one that reached it, none answered
+    # each one that reached it rejected as out of its window, none answered (amb-rig may stop the run on the
+    # intruder's appearance before the controller has taken any: then there are none)
+    rejected = int(ctl.get("rejected /amb/displacement", 0))  # written once non-zero
+    assert rejected == int(ctl["samples out of window"]) <= sent, ctl
     # every real sample was answered: the plant stepped on the controller's answers until amb-rig stopped it
     assert int(plant["steps"]) >= 500 and int(ctl["samples answered"]) >= int(plant["steps"]), (ctl, plant)
     assert int(plant["steps"]) < 30 * s["rate_hz"]  # stopped, not finished
