@@ -26,6 +26,11 @@ def rig():
     return cfg, build_structure(cfg)
 
 
+# the real rig with every noise, the unbalance and the runout off: its own linear dynamics, fitted exactly
+QUIET = ("disturbances.force_noise_rms_bearing=0", "disturbances.force_noise_rms_disk=0", "sensor.noise_rms=0",
+         "sensor.runout=0", "disks.0.balance_grade=null", "disks.0.unbalance=0")  # fmt: skip
+
+
 def test_tangent_closed_form_at_the_centre(rig):
     cfg, _ = rig
     law = BearingLaw.from_config(cfg.bearings)
@@ -85,9 +90,7 @@ def test_rig_at_rest_decays_as_the_loop_linearised_at_its_operating_point():
     from amb_dynamics.rig_loop import levitated_bearing, simulate_rig
     from amb_dynamics.sampled import SampledLoop
 
-    quiet = ["base_motion.kind=none", "disturbances.force_noise_rms_bearing=0", "disturbances.force_noise_rms_disk=0",
-             "sensor.noise_rms=0", "sensor.runout=0", "disks.0.balance_grade=null", "disks.0.unbalance=0"]  # fmt: skip
-    cfg = load_config(None, quiet)
+    cfg = load_config(None, [*QUIET, "base_motion.kind=none"])
     model = build_structure(cfg)
     Ts, T = 1.0 / cfg.controller.rate_hz, 0.1
     steps = round(T / Ts)
@@ -121,10 +124,7 @@ def test_the_level_base_model_of_a_tilting_rig_is_within_the_mismatch_allowance(
     from stability_monitor.model_check import MISMATCH_DAMPING
 
     A, W = 0.6, 21.8
-    quiet = ["disturbances.force_noise_rms_bearing=0", "disturbances.force_noise_rms_disk=0", "sensor.noise_rms=0",
-             "sensor.runout=0", "disks.0.balance_grade=null", "disks.0.unbalance=0", f"base_motion.amplitude={A}",
-             f"base_motion.frequency={W}"]  # fmt: skip
-    cfg = load_config(None, quiet)
+    cfg = load_config(None, [*QUIET, f"base_motion.amplitude={A}", f"base_motion.frequency={W}"])
     model = build_structure(cfg)
     Ts, T = 1.0 / cfg.controller.rate_hz, np.pi / W
     motion = BaseMotion.from_config(cfg.base_motion)

@@ -26,9 +26,7 @@ import pytest
 from amb_dynamics.config import load_config
 from amb_dynamics.digital_floquet import estimate_point
 from amb_dynamics.motion import BaseMotion
-from amb_dynamics.rig_loop import levitated_bearing
-from amb_dynamics.sampled import SampledLoop
-from amb_dynamics.structure import build_structure
+from stability_monitor.model_check import model_loop
 
 pytestmark = pytest.mark.ros
 
@@ -37,7 +35,7 @@ A, W = 0.6, 21.8
 
 def test_real_rig_tongue_point_raises_the_flag(venv_bin, tmp_path):
     cfg = load_config(None)
-    loop = levitated_loop(cfg)
+    loop = model_loop(cfg)
     model = estimate_point(loop, BaseMotion.single("pitch", A, W), math.pi / W)
     assert model["max_abs_multiplier"] - model["error_bound"] > 1.05  # well inside the tongue
     bag = tmp_path / "bag"
@@ -85,13 +83,6 @@ def test_real_rig_tongue_point_raises_the_flag(venv_bin, tmp_path):
     assert sensors["unstable"] and sensors["flag_time_s"] <= 16 * base_period, sensors["flag_time_s"]
 
 
-def levitated_loop(cfg):
-    """The config's digital loop about the levitated operating point (what the monitor's model value uses)."""
-    model = build_structure(cfg)
-    Ts = 1.0 / cfg.controller.rate_hz
-    return SampledLoop(model, cfg, Ts=Ts, forcing=False, bearing=levitated_bearing(model, cfg, Ts))
-
-
 def analyze(venv_bin, bag, *extra):
     out = subprocess.run([str(venv_bin / "amb-monitor"), "analyze", str(bag), "--json", *extra], capture_output=True,
                          text=True, timeout=600)  # fmt: skip
@@ -103,7 +94,7 @@ def test_real_rig_stable_point_raises_no_flag(venv_bin, tmp_path):
     # the default run (pitch 0.3 rad at 24.5 rad/s, outside the tongues: the model gives max|mu| < 1 per period):
     # unbalance, runout, noise and gravity must not read as instability, and the model value is the config's
     cfg = load_config(None)
-    loop = levitated_loop(cfg)
+    loop = model_loop(cfg)
     model = estimate_point(loop, BaseMotion.single("pitch", 0.3, 24.5), math.pi / 24.5)
     assert model["max_abs_multiplier"] + model["error_bound"] < 1.0
     cmd = [str(venv_bin / "amb-rig"), "run", "--duration", "6", "--json", "--log-dir", str(tmp_path / "logs")]

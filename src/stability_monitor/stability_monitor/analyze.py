@@ -176,15 +176,15 @@ def recorded_motion(t: np.ndarray, W: np.ndarray, base_period: float) -> BaseMot
 def model_value(analysis: Analysis, cfg) -> dict:
     """Sampled-data model multipliers for the recorded base motion and the given rotor config."""
     from amb_dynamics.digital_floquet import estimate_point
-    from amb_dynamics.rig_loop import levitated_bearing
-    from amb_dynamics.sampled import SampledLoop
-    from amb_dynamics.structure import build_structure
+
+    from .model_check import model_loop
 
     pe = analysis.pipeline.period_estimate
     if pe is None or analysis.imu_t.size < 16:
         raise InputError("no base period or base rates in the analysis: no model value")
     motion = recorded_motion(analysis.imu_t, analysis.imu_w, pe.base_period)
-    Ts = max(1, round(1e9 / cfg.controller.rate_hz)) / 1e9  # the nodes' whole-ns sample period
+    loop = model_loop(cfg)  # as the rig runs it: about its operating point (a nonlinear law's tangent there)
+    Ts = loop.Ts  # the nodes' whole-ns sample period
     notes = []
     if analysis.sample_spacing is not None:
         ratio = analysis.sample_spacing / Ts
@@ -193,8 +193,6 @@ def model_value(analysis: Analysis, cfg) -> dict:
     h = motion.harmonics[0]
     # the period of A(t) for the refined frequency (the estimate's kind: base period or half of it)
     period = pe.period * (2.0 * np.pi / pe.base_period) / h.frequency
-    model = build_structure(cfg)  # the loop about the rig's operating point (a nonlinear law's tangent there)
-    loop = SampledLoop(model, cfg, Ts=Ts, forcing=False, bearing=levitated_bearing(model, cfg, Ts))
     res = estimate_point(loop, motion, period)  # exact for T/Ts = p/r, else interpolated with a bound
     return {
         "rho": res["max_abs_multiplier"],

@@ -79,6 +79,18 @@ class ModelValue:
         return {"model rho": self.error or "computing"}
 
 
+def model_loop(cfg: RotorConfig):
+    """The config's digital loop as the rig runs it: the nodes' whole-ns sample period, forcing off, a nonlinear
+    bearing law linearised at the levitated operating point."""
+    from amb_dynamics.rig_loop import levitated_bearing
+    from amb_dynamics.sampled import SampledLoop
+    from amb_dynamics.structure import build_structure
+
+    Ts = max(1, round(1e9 / cfg.controller.rate_hz)) / 1e9
+    model = build_structure(cfg)
+    return SampledLoop(model, cfg, Ts=Ts, forcing=False, bearing=levitated_bearing(model, cfg, Ts))
+
+
 def model_multiplier(cfg: RotorConfig) -> tuple[float, float, float]:
     """(max|mu|, its error bound, the period of A(t)) of the config's digital loop on its single-axis motion."""
     import math
@@ -86,17 +98,12 @@ def model_multiplier(cfg: RotorConfig) -> tuple[float, float, float]:
     from amb_dynamics.digital_chart import parametric_period
     from amb_dynamics.digital_floquet import estimate_point
     from amb_dynamics.motion import BaseMotion
-    from amb_dynamics.rig_loop import levitated_bearing
-    from amb_dynamics.sampled import SampledLoop
-    from amb_dynamics.structure import build_structure
 
     motion = BaseMotion.from_config(cfg.base_motion)
     if len(motion.harmonics) != 1:
         raise ValueError("no model value: the config's base motion is not one harmonic about one axis")
     h = motion.harmonics[0]
-    Ts = max(1, round(1e9 / cfg.controller.rate_hz)) / 1e9  # the nodes' whole-ns sample period
-    model = build_structure(cfg)  # the loop about the rig's operating point (a nonlinear law's tangent there)
-    loop = SampledLoop(model, cfg, Ts=Ts, forcing=False, bearing=levitated_bearing(model, cfg, Ts))
+    loop = model_loop(cfg)
     period = parametric_period(loop, h.axis, h.frequency)
     res = estimate_point(loop, motion, period)
     rho, bound = float(res["max_abs_multiplier"]), float(res["error_bound"])
