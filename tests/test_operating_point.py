@@ -31,6 +31,20 @@ QUIET = ("disturbances.force_noise_rms_bearing=0", "disturbances.force_noise_rms
          "sensor.runout=0", "disks.0.balance_grade=null", "disks.0.unbalance=0")  # fmt: skip
 
 
+def kicked_rig_fits(cfg, model, motion, seconds: float, T: float, forcing) -> list[tuple[float, float]]:
+    """(time, rho) of the excited estimates of the rig (``simulate_rig``, the plant node's code) kicked by 2 um at
+    the start, fitted by the estimator from its noise-free positions per period T (the monitor's full-state fit)."""
+    from amb_dynamics.estimator.stream import EstimatorConfig, estimate_series
+    from amb_dynamics.rig_loop import simulate_rig
+
+    Ts = 1.0 / cfg.controller.rate_hz
+    x0 = np.zeros(2 * model.n)
+    x0[: model.n] = np.random.default_rng(0).standard_normal(model.n) * 2e-6
+    run = simulate_rig(model, cfg, motion, round(seconds / Ts), x0=x0)
+    est = EstimatorConfig(period=T, sample_time=Ts, forcing=forcing, noise_std=0.0, scale_groups=(0,) * model.n)
+    return [(e.time, e.fit.rho) for e in estimate_series(run.t, run.x[:, : model.n], est) if e.fit.excited]
+
+
 def test_tangent_closed_form_at_the_centre(rig):
     cfg, _ = rig
     law = BearingLaw.from_config(cfg.bearings)
@@ -83,11 +97,10 @@ def test_rig_at_rest_decays_as_the_loop_linearised_at_its_operating_point():
     """The monitor's model value uses the loop about the levitated operating point (``levitated_bearing``).  The
     independent number: the rig itself (``simulate_rig``: the plant node's nonlinear bearing law, gravity, bias
     offsets; noise, unbalance and runout off; level base) kicked by 2 um and fitted by the estimator from its
-    noise-free full state.  Its slowest multiplier per 0.1 s must be the operating point's (to 1e-5), which
+    noise-free positions.  Its slowest multiplier per 0.1 s must be the operating point's (to 1e-5), which
     differs from the centred law's by 1.7e-4."""
-    from amb_dynamics.estimator.stream import EstimatorConfig, estimate_series
     from amb_dynamics.motion import BaseMotion
-    from amb_dynamics.rig_loop import levitated_bearing, simulate_rig
+    from amb_dynamics.rig_loop import levitated_bearing
     from amb_dynamics.sampled import SampledLoop
 
     cfg = load_config(None, [*QUIET, "base_motion.kind=none"])
@@ -101,12 +114,8 @@ def test_rig_at_rest_decays_as_the_loop_linearised_at_its_operating_point():
 
     centred, levitated = rho(None), rho(levitated_bearing(model, cfg, Ts))
     assert abs(centred - levitated) > 1e-4
-    x0 = np.zeros(2 * model.n)
-    x0[: model.n] = np.random.default_rng(0).standard_normal(model.n) * 2e-6
-    run = simulate_rig(model, cfg, BaseMotion.single("pitch", 0.0, 1.0), 10_000, x0=x0)
-    est = EstimatorConfig(period=T, sample_time=Ts, forcing="constant", noise_std=0.0,
-                          scale_groups=tuple([0] * model.n + [1] * model.n))  # fmt: skip
-    fits = [e.fit.rho for e in estimate_series(run.t, run.x[:, : 2 * model.n], est)[-40:]]
+    fits = [rho for _, rho in kicked_rig_fits(cfg, model, BaseMotion.single("pitch", 0.0, 1.0), 2.0, T, "constant")]
+    fits = fits[-40:]
     assert np.max(np.abs(np.array(fits) - levitated)) < 1e-5, (fits[-1], levitated, centred)
 
 
@@ -117,9 +126,8 @@ def test_the_level_base_model_of_a_tilting_rig_is_within_the_mismatch_allowance(
     still small, grows by 1.048 per period against the model's 1.0560 (centred law: 1.0606): within the monitor's
     "model mismatch" allowance of a quarter of the model's distance from 1, and closer than the centred law."""
     from amb_dynamics.digital_floquet import estimate_point
-    from amb_dynamics.estimator.stream import EstimatorConfig, estimate_series
     from amb_dynamics.motion import BaseMotion
-    from amb_dynamics.rig_loop import levitated_bearing, simulate_rig
+    from amb_dynamics.rig_loop import levitated_bearing
     from amb_dynamics.sampled import SampledLoop
     from stability_monitor.model_check import MISMATCH_DAMPING
 
@@ -132,11 +140,7 @@ def test_the_level_base_model_of_a_tilting_rig_is_within_the_mismatch_allowance(
     for name, bearing in (("centred", None), ("level", levitated_bearing(model, cfg, Ts))):
         loop = SampledLoop(model, cfg, Ts=Ts, forcing=False, bearing=bearing)
         rho[name] = estimate_point(loop, motion, T)["max_abs_multiplier"]
-    x0 = np.zeros(2 * model.n)
-    x0[: model.n] = np.random.default_rng(0).standard_normal(model.n) * 2e-6
-    run = simulate_rig(model, cfg, motion, round(2.6 / Ts), x0=x0)
-    est = EstimatorConfig(period=T, sample_time=Ts, forcing=2, noise_std=0.0, scale_groups=(0,) * model.n)
-    fits = [e.fit.rho for e in estimate_series(run.t, run.x[:, : model.n], est) if e.fit.excited and e.time > 1.5]
+    fits = [rho for t, rho in kicked_rig_fits(cfg, model, motion, 2.6, T, 2) if t > 1.5]
     rig = float(np.median(fits))
     assert 1.04 < rig < rho["level"] < rho["centred"], (rig, rho)
     assert abs(rig - rho["level"]) < MISMATCH_DAMPING * (rho["level"] - 1.0), (rig, rho)
