@@ -51,6 +51,11 @@ REL_FLOOR = 1e-9  # singular values below this fraction of the data norm are rou
 NOISE_FACTOR = 1.5  # noise floor = this times the expected largest singular value of the noise matrix
 PLATEAU_FACTOR = 1.5  # the same safety on the top of the innovation plateau (plateau_floor)
 MIN_SNR = 2.0  # a transient whose largest singular value is under this times the floor identifies no map
+# Noisy data: a direction is signal only this far above the floor.  The floor is the expected top of the noise
+# spectrum; its top singular values scatter around it, and the more pairs a window has the more of them cross it.
+# A crossing direction is a mode fitted to a few columns' innovations: with 32 pairs of the real rig's
+# displacements it gave rho 1.5-2.6 at a stable point (docs/monitor.md#window).
+KEEP_FACTOR = 1.3
 METHODS = ("ls", "tls", "opt")
 
 
@@ -140,7 +145,7 @@ def fit_period_map(
     floor = noise_floor(row_noise, m, free, float(np.linalg.norm(Z, 2)))
     if row_noise is not None:  # noisy data: the innovations of process noise are noise too
         floor = max(floor, plateau_floor(s, m))
-    signal_rank = int(np.count_nonzero(s > floor))
+    signal_rank = int(np.count_nonzero(s > (floor if row_noise is None else KEEP_FACTOR * floor)))
     rank = min(signal_rank, max_rank, free - min_dof)
     if signal_rank == 0:
         return MapFit(empty, np.inf, s, floor, pairs, 0, 0, 0, method, "no transient above the noise floor")
