@@ -55,7 +55,7 @@ def test_no_model_value_without_a_single_harmonic():
 
 @pytest.mark.ros
 def test_retuned_controller_is_a_model_mismatch(venv_bin, tmp_path, paper_model):
-    cmd = [str(venv_bin / "amb-rig"), "run", "--json", "--config", str(PAPER), "--duration", "3",
+    cmd = [str(venv_bin / "amb-rig"), "run", "--json", "--config", str(PAPER), "--duration", "5",
            "--initial-displacement", "1e-3", "--param", "controller:derivative_gain=4.0",
            "--log-dir", str(tmp_path / "logs")]  # fmt: skip
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
@@ -73,7 +73,7 @@ def test_two_pairs_at_one_frequency_fitted_as_one_are_a_model_mismatch():
     """The real-rig config at the shallow tongue point (0.4 rad, 22.3 rad/s): its model has a growing pair
     (1.0105) and a decaying pair (0.972) that turn by the same angle per period within 0.01 rad.  Over a 6 s run
     with the rig's noise (offline: the plant node's stepping code, the monitor's pipeline as the node feeds it) the
-    16-period window fits one pair between them and the estimate says stable; the model check must flag it."""
+    32-period window fits one pair between them and the estimate says stable; the model check must flag it."""
     import numpy as np
 
     from stability_monitor.montecarlo import monitor, simulate

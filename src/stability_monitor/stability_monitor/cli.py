@@ -39,7 +39,9 @@ def analyze_parser() -> argparse.ArgumentParser:
     p.add_argument("--velocities", action="store_true", help="full state: fit the velocities too (default: the "
                    "positions only)")  # fmt: skip
     p.add_argument("--phases", type=int, default=D.phases)
-    p.add_argument("--window", type=int, default=D.window, help="periods in the moving window")
+    p.add_argument("--window", type=int, default=D.window, help="periods in the moving window (moving base)")
+    p.add_argument("--static-window", type=int, default=D.static_window, help="periods of 0.1 s in the window "
+                   "(static base)")  # fmt: skip
     p.add_argument("--updates-per-period", type=int, default=D.updates_per_period)
     p.add_argument(
         "--method",
@@ -67,7 +69,7 @@ def analyze(argv: list[str]) -> int:
     args = analyze_parser().parse_args(argv)
     from .analyze import analyze_bag, try_model_value
 
-    for name in ("phases", "window", "updates_per_period", "top"):
+    for name in ("phases", "window", "static_window", "updates_per_period", "top"):
         if getattr(args, name) < 1:
             raise AmbError(f"--{name.replace('_', '-')} must be >= 1")
     cfg, config_note = run_config(args.bag, args.config, args.set)
@@ -83,6 +85,7 @@ def analyze(argv: list[str]) -> int:
         forcing=args.forcing,
         phases=args.phases,
         window=args.window,
+        static_window=args.static_window,
         updates_per_period=args.updates_per_period,
         method=args.method,
         noise_std=args.noise_std,

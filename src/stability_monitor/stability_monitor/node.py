@@ -78,7 +78,9 @@ def specs() -> list[ParamSpec]:
         ParamSpec("velocities", D.velocities, "input state: fit the velocities too (default: the positions only; the "
                   "phases of a period observe the velocities)"),
         ParamSpec("phases", D.phases, "phases sampled per period", "", 1, 4096),
-        ParamSpec("window_periods", D.window, "periods in the moving window", "", 3, 10000),
+        ParamSpec("window_periods", D.window, "periods in the moving window (moving base)", "", 3, 10000),
+        ParamSpec("static_window_periods", D.static_window, "periods of static_period_s in the window (static base)",
+                  "", 3, 10000),
         ParamSpec("updates_per_period", D.updates_per_period, "refits per period", "", 1, 4096),
         ParamSpec("method", D.method, "identification: LS refined by variable projection (opt), least squares (ls) or "
                   "total least squares (tls)", choices=METHODS),
@@ -117,6 +119,7 @@ class MonitorNode(RigNode):
             gravity=self.cfg.gravity.enabled,
             phases=p["phases"],
             window=p["window_periods"],
+            static_window=p["static_window_periods"],
             updates_per_period=p["updates_per_period"],
             method=p["method"],
             max_rank=p["max_rank"],
@@ -287,9 +290,10 @@ class MonitorNode(RigNode):
         pl, est = self.pipeline, self.pipeline.latest
         if self.model is None or est is None or not est.fit.excited or pl.period_estimate is None:
             return None
-        if est.periods < self.settings.window:
+        if est.periods < pl.estimator.cfg.window:  # the static base's window or the moving base's
             return None
-        return self.model.mismatch(est.rho, est.fit.rho_std, pl.period_estimate.period)
+        std = max(est.fit.rho_std, pl.rho_scatter())
+        return self.model.mismatch(est.rho, std, pl.period_estimate.period)
 
     def values(self) -> dict[str, str]:
         out = self.common_values()
