@@ -33,8 +33,9 @@ def stable_run():
     return montecarlo.simulate(sets, None, 100 * T)
 
 
-def late_estimates(run, sensor_only: bool, monkeypatch, **settings) -> tuple[np.ndarray, object]:
-    """rho of the excited refits from 32 periods on, and the pipeline, with MonitorSettings fields overridden."""
+def late_estimates(run, sensor_only: bool, monkeypatch, **settings) -> tuple[np.ndarray, np.ndarray, object]:
+    """Times and rho of the excited refits from 32 periods on, and the pipeline, with MonitorSettings fields
+    overridden."""
     cfg, model, sim, _ = run
 
     def settings_with(**kw):
@@ -42,21 +43,25 @@ def late_estimates(run, sensor_only: bool, monkeypatch, **settings) -> tuple[np.
 
     monkeypatch.setattr(montecarlo, "MonitorSettings", settings_with)
     pl, ests, _ = montecarlo.monitor(cfg, model, sim, sensor_only, T, "two_periods")
-    return np.array([e.rho for e in ests if e.fit.excited and e.time >= 32 * T]), pl
+    late = [e for e in ests if e.fit.excited and e.time >= 32 * T]
+    return np.array([e.time for e in late]), np.array([e.rho for e in late]), pl
 
 
 @pytest.mark.parametrize("sensor_only", [False, True], ids=["full", "sensor"])
 def test_estimate_after_32_periods_is_the_model_within_0_005(stable_run, sensor_only, monkeypatch):
     rho_model = model_multiplier(load_config(None))[0]
     assert rho_model == pytest.approx(0.99711, abs=1e-5)
-    late, pl = late_estimates(stable_run, sensor_only, monkeypatch)
+    times, late, pl = late_estimates(stable_run, sensor_only, monkeypatch)
     assert pl.flag_time is None
     assert late.size > 400  # 8 refits per period over 68 periods
     assert abs(late[0] - rho_model) <= 0.005, late[0]
     assert abs(np.median(late) - rho_model) <= 0.0025, np.median(late)
     assert np.max(np.abs(late - rho_model)) <= 0.01  # no spurious mode anywhere in the 68 periods
+    # the scatter the model check allows: rho's std over the excited refits of the last 32 periods
+    last = late[times >= times[-1] - 32 * T]
+    assert pl.rho_scatter() == pytest.approx(np.std(last, ddof=1), rel=1e-9)
     if sensor_only:  # the 16-period window on the same data: biased low and twice the scatter
-        short, _ = late_estimates(stable_run, True, monkeypatch, window=16)
+        _, short, _ = late_estimates(stable_run, True, monkeypatch, window=16)
         assert np.median(short) < np.median(late) - 0.003
         assert np.std(short) > 2 * np.std(late)
 
@@ -65,5 +70,5 @@ def test_directions_at_the_floor_fit_spurious_modes(stable_run, monkeypatch):
     """Without the 1.3x rule the 32-period sensor-only window keeps directions just over the floor and fits a
     mode growing by far more than any the loop has (the run is stable: the model's is 0.99711)."""
     monkeypatch.setattr(fit_module, "KEEP_FACTOR", 1.0)
-    late, _ = late_estimates(stable_run, True, monkeypatch)
+    _, late, _ = late_estimates(stable_run, True, monkeypatch)
     assert late.max() > 1.2

@@ -18,8 +18,8 @@ import numpy as np
 from amb_dynamics.errors import AmbError, InputError
 
 EXIT_USAGE = 2
-MONITOR_KEYS = ("verdict", "unstable", "rho", "rho std", "model rho", "model mismatch", "flag raised at (s)",
-                "periods used", "base period (s)", "state")  # fmt: skip
+MONITOR_KEYS = ("verdict", "unstable", "rho", "rho std", "rho scatter", "model rho", "model mismatch",
+                "flag raised at (s)", "periods used", "base period (s)", "state")  # fmt: skip
 CYCLE = 64  # samples of one synchronous cycle for the model's vibration measure
 
 

@@ -54,6 +54,7 @@ def build_summary(run: dict, children: list[Child], collector, errors: list[str]
         v = mon["values"]
         out["stability"] = {"verdict": Monitor.verdict.read(v) or "none", "unstable": Monitor.unstable.read(v) is True,
                             "rho": _num(v, Monitor.rho), "rho_std": _num(v, Monitor.rho_std),
+                            "rho_scatter": _num(v, Monitor.rho_scatter),
                             "periods_used": _num(v, Monitor.periods_used),
                             "flag_raised_at_s": _num(v, Monitor.flag_raised_at),
                             "model_rho": _num(v, Monitor.model_rho),

@@ -87,6 +87,7 @@ class Monitor:
     verdict = Key("verdict", str, ())
     rho = Key("rho", float, ())
     rho_std = Key("rho std", float, ())
+    rho_scatter = Key("rho scatter", float, ())
     periods_used = Key("periods used", int, ())
     period = Key("period (s)", float, ())
     flag_raised_at = Key("flag raised at (s)", float, ())

@@ -273,14 +273,12 @@ class MonitorNode(RigNode):
         if est is None:
             return WARN, "collecting the first periods"
         if est.unstable:
-            return (
-                ERROR,
-                f"UNSTABLE: rho = {est.rho:.4f} +- {est.fit.rho_std:.2g} (flag raised at t = {pl.flag_time:.4f} s)",
-            )
+            std = self.rho_uncertainty()
+            return ERROR, f"UNSTABLE: rho = {est.rho:.4f} +- {std:.2g} (flag raised at t = {pl.flag_time:.4f} s)"
         if not est.fit.excited:
             return WARN, f"{est.verdict.replace('_', ' ')}: {est.fit.reason}"
         level = OK if est.verdict == "stable" else WARN
-        text = f"{est.verdict}: rho = {est.rho:.4f} +- {est.fit.rho_std:.2g} over {est.periods} periods"
+        text = f"{est.verdict}: rho = {est.rho:.4f} +- {self.rho_uncertainty():.2g} over {est.periods} periods"
         if mismatch := self.mismatch():
             return WARN, f"{text}; {mismatch}"
         return level, text
@@ -292,8 +290,11 @@ class MonitorNode(RigNode):
             return None
         if est.periods < pl.estimator.cfg.window:  # the static base's window or the moving base's
             return None
-        std = max(est.fit.rho_std, pl.rho_scatter())
-        return self.model.mismatch(est.rho, std, pl.period_estimate.period)
+        return self.model.mismatch(est.rho, self.rho_uncertainty(), pl.period_estimate.period)
+
+    def rho_uncertainty(self) -> float:
+        """The larger of the latest fit's standard error and the scatter of the last window's refits."""
+        return max(self.pipeline.latest.fit.rho_std, self.pipeline.rho_scatter())
 
     def values(self) -> dict[str, str]:
         out = self.common_values()
@@ -324,6 +325,8 @@ class MonitorNode(RigNode):
                 if f.excited:
                     out[Monitor.rho.text] = f"{f.rho:.6f}"
                     out[Monitor.rho_std.text] = f"{f.rho_std:.3g}"
+                if len(pl.recent) >= 2:
+                    out[Monitor.rho_scatter.text] = f"{pl.rho_scatter():.3g}"
         if self.model is not None:
             out.update(self.model.values())
             if pl.period_estimate is not None and (rho := self.model.per(pl.period_estimate.period)) is not None:

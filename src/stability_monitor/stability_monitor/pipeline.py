@@ -145,7 +145,7 @@ class MonitorPipeline:
         self.samples = self.imu_samples = self.refits = 0
         self.flag_time: float | None = None
         self.latest: Estimate | None = None
-        self._recent: deque[tuple[float, float]] = deque()  # (time, rho): excited full-window refits, last window
+        self.recent: deque[tuple[float, float]] = deque()  # (time, rho): excited full-window refits, last window
         self._buffer: list[tuple[float, np.ndarray, float | None]] = []
         self._imu_t: list[float] = []
         self._imu_w: list[np.ndarray] = []
@@ -321,10 +321,10 @@ class MonitorPipeline:
         self.refits += 1
         self.latest = est
         if est.fit.excited and est.periods >= self.estimator.cfg.window:
-            self._recent.append((est.time, est.rho))
+            self.recent.append((est.time, est.rho))
             span = self.estimator.cfg.window * self.estimator.cfg.period
-            while self._recent[0][0] < est.time - span:
-                self._recent.popleft()
+            while self.recent[0][0] < est.time - span:
+                self.recent.popleft()
         if est.unstable and self.flag_time is None:
             self.flag_time = est.time
         return [est]
@@ -341,9 +341,9 @@ class MonitorPipeline:
         The fit's own standard error assumes independent noise on every snapshot entry; a rig's process noise
         moves all channels together, and on the real-rig default that error (~3e-5) is far under the scatter of
         rho between runs (~1e-3).  The refits' scatter shows it; the model check takes the larger of the two."""
-        if len(self._recent) < 2:
+        if len(self.recent) < 2:
             return 0.0
-        return float(np.std([r for _, r in self._recent], ddof=1))
+        return float(np.std([r for _, r in self.recent], ddof=1))
 
     @property
     def forcing(self) -> str:
