@@ -95,7 +95,7 @@ def main() -> dict:
             "spin_speed_rpm=500", "base_motion.kind=none"]  # fmt: skip
     cfg, model, run, sim_s = simulate(ramp, None, 20.0)
     for mode in ("full", "sensor"):
-        pl, ests, cost = monitor(cfg, model, run, mode == "sensor", 0.1, "constant")
+        pl, ests, cost = monitor(cfg, model, run, mode == "sensor", 0.1, "constant", static_base=True)
         excited = [e.fit.rho for e in ests if e.fit.excited]
         res[f"runup_{mode}"] = {"flag_time_s": pl.flag_time, "refits": len(ests), "excited": len(excited),
                                 "max_rho": max(excited, default=None), "cost_us": cost * 1e6}  # fmt: skip

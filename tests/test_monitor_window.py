@@ -5,7 +5,7 @@ T = pi/omega), with every disturbance of the config: the plant node's stepping c
 fed as the node feeds it (stability_monitor.montecarlo).  The issue's accuracy: |rho_hat - rho| <= 0.005 after
 32 periods, for the full state and for the four AMB displacements (sensor-only).  The old 16-period window read
 the sensor-only estimate low by ~0.007 and scattered by 0.01 on the same data; 32 periods without the 1.3x rule
-fitted modes with rho 1.5-2.6 to a few columns' innovations.
+fitted modes with rho 1.5-2.6 to a few columns' innovations.  A static base keeps 16 periods (a run-up).
 """
 
 from __future__ import annotations
@@ -72,3 +72,19 @@ def test_directions_at_the_floor_fit_spurious_modes(stable_run, monkeypatch):
     monkeypatch.setattr(fit_module, "KEEP_FACTOR", 1.0)
     _, late, _ = late_estimates(stable_run, True, monkeypatch)
     assert late.max() > 1.2
+
+
+def test_static_base_run_up_needs_the_short_window():
+    """A run-up 500 -> 1500 rpm in 20 s on a level base (every disturbance on): the static base's 16 periods of
+    0.1 s (the speed moves 80 rpm inside them) raise no flag; the moving base's 32 (160 rpm) flag the stable
+    rotor.  The node takes the static window when the base rates show no rotation; here the period is given."""
+    ramp = ["spin.profile=ramp", "spin.start_rpm=500", "spin.end_rpm=1500", "spin.rate_rpm_s=50",
+            "spin_speed_rpm=500", "base_motion.kind=none"]  # fmt: skip
+    cfg, model, sim, _ = montecarlo.simulate(ramp, None, 20.0)
+    assert MonitorSettings().static_window == 16 and MonitorSettings().window == 32
+    pl, ests, _ = montecarlo.monitor(cfg, model, sim, False, 0.1, "constant", static_base=True)
+    excited = [e.fit.rho for e in ests if e.fit.excited]
+    assert pl.estimator.cfg.window == 16
+    assert len(excited) > 0.9 * len(ests) and pl.flag_time is None, max(excited)
+    pl, _, _ = montecarlo.monitor(cfg, model, sim, False, 0.1, "constant")
+    assert pl.estimator.cfg.window == 32 and pl.flag_time is not None

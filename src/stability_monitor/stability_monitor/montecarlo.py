@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -38,8 +39,11 @@ def simulate(overrides: list[str], motion_args, seconds: float):
     return cfg, model, run, time.perf_counter() - t0
 
 
-def monitor(cfg, model, run, sensor_only: bool, period: float, forcing: str):
-    """The pipeline over the run as the node sees it; returns (pipeline, estimates, seconds per sample)."""
+def monitor(cfg, model, run, sensor_only: bool, period: float, forcing: str, static_base: bool = False):
+    """The pipeline over the run as the node sees it; returns (pipeline, estimates, seconds per sample).
+
+    The period is given, not found from base rates (none are fed): ``static_base`` takes the window the node
+    uses when the base rates show a static base (``static_window``), else that of a moving base."""
     n = model.n
     S = run.y if sensor_only else run.x[:, : 2 * n]
     groups = None if sensor_only else tuple([0] * n + [1] * n)
@@ -47,6 +51,8 @@ def monitor(cfg, model, run, sensor_only: bool, period: float, forcing: str):
     angle = np.concatenate([[0.0], np.cumsum(0.5 * (run.spin[1:] + run.spin[:-1]) * Ts)])  # exact for a ramp
     settings = MonitorSettings(sensor_only=sensor_only, period=period, forcing=forcing,
                                synchronous=synchronous_harmonics(-1, cfg))  # fmt: skip
+    if static_base:
+        settings = replace(settings, window=settings.static_window)
     pl = MonitorPipeline(settings, groups)
     ests = []
     t0 = time.perf_counter()

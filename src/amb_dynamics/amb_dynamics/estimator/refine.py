@@ -50,7 +50,8 @@ def _basis(upper: np.ndarray, real: np.ndarray, n: int) -> tuple[np.ndarray, np.
     q = 2 * npair + nreal
     V = np.empty((q, n))
     dV = np.zeros((q, q, n))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    # a Marquardt trial step may overshoot to |mu| >> 1: mu^j overflows, and evaluate() rejects the trial
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for k, mu in enumerate(upper):
             pw = mu**j
             dp = np.where(j > 0, j * mu ** np.maximum(j - 1, 0), 0.0)  # d mu^j / d mu
