@@ -101,17 +101,20 @@ def _pingpong_side(role: str, tag: str, n: int, path: str = "waitset") -> None:
         return
     if role == "ping":
         time.sleep(0.2)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         for k in range(n):
             y[0] = k
             pub.publish(codec.encode(k, y))
             if codec.decode(receive())[1][0] != k:
                 raise SystemExit("pingpong: echo out of order")
-        rate = n / (time.perf_counter() - t0)
-        print(json.dumps({"round_trips_per_s": rate}), flush=True)
-    else:
-        for _ in range(n):
+        rate, cpu = n / (time.perf_counter() - t0), time.process_time() - c0
+        print(json.dumps({"round_trips_per_s": rate, "cpu_us": 1e6 * cpu / n}), flush=True)
+    else:  # the CPU of every thread of the process (time.process_time), from the first ping on
+        pub.publish(receive())
+        c0 = time.process_time()
+        for _ in range(n - 1):
             pub.publish(receive())
+        print(json.dumps({"cpu_us": 1e6 * (time.process_time() - c0) / (n - 1)}), flush=True)
         pub.wait_for_all_acked()
     node.destroy_node()
     rclpy.shutdown()
@@ -172,21 +175,33 @@ def _pingpong_callbacks(role: str, n: int, path: str, node, pub, sub_unused, cod
 def pingpong(n: int, path: str = "waitset") -> float:
     """Round trips/s of two processes echoing a 4-channel JointState: ``path`` waitset (the nodes' own wait-set
     loop), events (EventsExecutor callbacks) or single (SingleThreadedExecutor callbacks)."""
+    return pingpong_detail(n, path)["round_trips_per_s"]
+
+
+def pingpong_detail(n: int, path: str = "waitset") -> dict:
+    """:func:`pingpong` with, on the wait-set path, the CPU time per round trip of each side's process, all
+    threads (``ping_cpu_us``: publishes then takes, as the plant; ``echo_cpu_us``: takes then publishes, as the
+    controller): what one lockstep step's DDS traffic costs rclpy with no computation at all."""
     env, tag = _env(), f"{os.getpid()}_{time.monotonic_ns() % 10**6}"
     cmd = [sys.executable, __file__, "--pingpong-side"]
-    echo = subprocess.Popen([*cmd, "echo", tag, str(n), path], env=env, stdout=subprocess.DEVNULL)
+    echo = subprocess.Popen([*cmd, "echo", tag, str(n), path], env=env, stdout=subprocess.PIPE, text=True)
     try:
         out = subprocess.run([*cmd, "ping", tag, str(n), path], env=env, capture_output=True, text=True,
                              timeout=120)  # fmt: skip
     finally:
         try:
-            echo.wait(timeout=15)
+            echo_out = echo.communicate(timeout=15)[0]
         except subprocess.TimeoutExpired:
             echo.kill()
-            echo.wait()
+            echo_out = echo.communicate()[0]
     if out.returncode:
         raise RuntimeError(f"ping-pong failed: {out.stderr.strip()[-300:]}")
-    return json.loads(out.stdout.strip().splitlines()[-1])["round_trips_per_s"]
+    ping = json.loads(out.stdout.strip().splitlines()[-1])
+    result = {"round_trips_per_s": ping["round_trips_per_s"]}
+    echo_lines = [ln for ln in (echo_out or "").splitlines() if ln.startswith("{")]
+    if path == "waitset" and echo_lines:
+        result.update(ping_cpu_us=ping["cpu_us"], echo_cpu_us=json.loads(echo_lines[-1])["cpu_us"])
+    return result
 
 
 # -- amb-rig runs -------------------------------------------------------------------------------------
@@ -248,12 +263,14 @@ def cpu_per_step(runs: int = CPU_RUNS) -> list[dict]:
 
 
 def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> dict:
-    pp1 = pingpong(round_trips)
+    d1 = pingpong_detail(round_trips)
+    pp1 = d1["round_trips_per_s"]
     runs = {0: [], 20: [], "real": []}
     for _ in range(repeats):  # alternating: this machine's load drifts
         for prio in runs:
             runs[prio].append(lockstep(duration, 0, real_rig=True) if prio == "real" else lockstep(duration, prio))
-    pp2 = pingpong(round_trips)
+    d2 = pingpong_detail(round_trips)
+    pp2 = d2["round_trips_per_s"]
     paths = {"waitset": [], "events": [], "single": []}
     for _ in range(repeats):  # the executors' callback paths against the nodes' wait-set path, alternating
         for path in paths:
@@ -286,7 +303,9 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         "realtime_2khz_timer": timer2,
         "realtime_goal_met": timers_p99 < GOAL_P99_US,
         "cpu_us_per_step": [c["us_per_step"] for c in cpu],
-    }
+        "pingpong_cpu_us_per_round_trip": {side: [d[f"{side}_cpu_us"] for d in (d1, d2) if f"{side}_cpu_us" in d]
+                                           for side in ("ping", "echo")},
+    }  # fmt: skip
     steps = runs[0][-1]["steps"]
     rows = [
         ("bare rclpy ping-pong (round trips/s)", f"{base:,.0f}", f"before {pp1:,.0f}, after {pp2:,.0f}"),
@@ -343,6 +362,13 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
                note=f"main thread {statistics.median(main_thread):.0f} us")  # fmt: skip
         rows.append((f"CPU per step, {proc} (us)", f"{statistics.median(total):.0f}",
                      f"all threads; main thread {statistics.median(main_thread):.0f}; goal {goal or '-'}"))  # fmt: skip
+    for side, like in (("ping", "amb-plant"), ("echo", "amb-controller")):
+        cpu_rt = result["pingpong_cpu_us_per_round_trip"][side]
+        if cpu_rt:  # the floor under the nodes' CPU per step: rclpy's own cost of one step's traffic
+            record(f"CPU per round trip, bare rclpy ping-pong, {side} process, all threads (the floor of {like})",
+                   cpu_rt, "us")  # fmt: skip
+            rows.append((f"CPU per round trip, ping-pong {side} (us)", f"{statistics.median(cpu_rt):.0f}",
+                         f"all threads, no computation: the rclpy floor under {like}'s CPU per step"))  # fmt: skip
     width = max(len(r[0]) for r in rows)
     print("bench_lockstep")
     for name, value, note in rows:
