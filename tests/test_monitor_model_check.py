@@ -39,8 +39,9 @@ def test_mismatch_rule():
     assert mv.per(0.2) == pytest.approx(0.9988**2)  # an estimate over the base period: two periods of A(t)
     assert mv.mismatch(0.99881, 6e-6, 0.1) is None
     assert mv.mismatch(0.9990, 1e-4, 0.1) is None  # 5 standard errors cover the difference
-    msg = mv.mismatch(0.9997, 4e-7, 0.1)  # allowed: a quarter of 1 - 0.9988
-    assert msg is not None and "model mismatch" in msg and "allowed 0.0003" in msg
+    msg = mv.mismatch(0.9997, 4e-7, 0.1)  # allowed: 0.4 of 1 - 0.9988
+    assert msg is not None and "model mismatch" in msg and "allowed 0.00048" in msg
+    assert mv.mismatch(0.99915, 4e-7, 0.1) is None  # 0.00035 off: inside it
     assert mv.mismatch(0.99770, 1e-6, 0.1) is not None  # too much damping is a mismatch too
 
 

@@ -12,8 +12,11 @@ The running estimate disagrees with the model when
     |rho - rho_model| > max(MISMATCH_Z std(rho), MISMATCH_FLOOR, MISMATCH_DAMPING |1 - rho_model|) + bound
 
 (per the estimate's period): the rig is not the config (other gains, a stiffer bearing, another rate) or the
-config's motion is not the base's.  The last term allows a quarter of the model's distance from 1, i.e. of its
-decay (or growth) per period: a loop whose damping is off by more than that is not the one the config describes.
+config's motion is not the base's.  The last term allows 0.4 of the model's distance from 1, i.e. of its decay
+(or growth) per period: a loop whose damping is off by more than that is not the one the config describes.  The
+model is linear; on a tilting base the real rig rides a forced orbit of gravity where its bearing law is not, and
+grows up to a third slower than the model says (tests/test_operating_point.py): the allowance keeps that rig,
+which is the config, from being called a mismatch.
 Only an excited, converged estimate (a full window of periods) is compared.
 """
 
@@ -25,7 +28,7 @@ from amb_dynamics.config import RotorConfig
 
 MISMATCH_Z = 5.0  # standard errors of the estimate
 MISMATCH_FLOOR = 1e-4  # absolute, per period
-MISMATCH_DAMPING = 0.25  # of |1 - rho_model|
+MISMATCH_DAMPING = 0.4  # of |1 - rho_model|
 
 
 class ModelValue:
