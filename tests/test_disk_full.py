@@ -90,3 +90,48 @@ def test_a_rig_run_recording_to_a_full_disk_fails_with_the_recorder_row_an_error
     assert f"lost at least {received - on_disk}" in rec["message"], rec
     assert any("recorder" in e for e in s["errors"]), s["errors"]
     assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.ros
+def test_a_write_error_report_waits_for_the_named_collector(small_disk, tmp_path, venv_bin):
+    """/diagnostics is volatile: the recorder's ERROR report of a full disk reaches a reader that is matched only
+    after the disk has filled, because ``--diagnostics-collector`` (amb-rig passes its collector's name) makes the
+    recorder wait for that reader before it exits.  Before, amb-rig's row of the recorder sometimes said "no
+    diagnostics received" (3 runs in 14 of `amb-rig run --bag` on a 1 MiB disk)."""
+    import time
+
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from amb_bag.recorder import NODE_NAME
+    from helpers import DdsRecorder
+
+    bag = small_disk / "bag"
+    rec_cmd = [str(venv_bin / "amb-bag"), "record", "-o", str(bag), "--flush-interval", "0.2",
+               "--diagnostics-collector", "late_collector"]  # fmt: skip
+    pub_cmd = [sys.executable, str(PUBLISHER), "--steps", "20000", "--rate", "0", "--log", str(tmp_path / "sent.pkl"),
+               "--wait-subscribers", "30"]  # fmt: skip
+    collector = None
+    try:
+        with spawn(rec_cmd, tmp_path / "rec.log") as rec:
+            assert rec.wait_for("recording to", 30), rec.text()
+            with spawn(pub_cmd, tmp_path / "pub.log") as pub:
+                deadline = time.monotonic() + 60.0
+                while os.statvfs(small_disk).f_bavail > 0 and time.monotonic() < deadline:
+                    time.sleep(0.02)
+                assert os.statvfs(small_disk).f_bavail == 0, "the disk did not fill"
+                collector = DdsRecorder({"/diagnostics": DiagnosticArray}, name="late_collector")
+                code = rec.wait(90)
+                pub.stop()
+            text = rec.text()
+        assert code == 1 and "No space left on device" in text, text
+        deadline = time.monotonic() + 3.0
+        while time.monotonic() < deadline and not collector.messages["/diagnostics"]:
+            time.sleep(0.05)
+        time.sleep(0.2)
+        reports = [s for m in collector.messages["/diagnostics"] for s in m.status if s.name == NODE_NAME]
+        errors = [s for s in reports if s.level == b"\x02" and "No space left on device" in s.message]  # ERROR
+        assert errors, [(s.level, s.message) for s in reports]
+        assert {kv.key: kv.value for kv in errors[-1].values}["final"] == "true"
+    finally:
+        if collector is not None:
+            collector.close()

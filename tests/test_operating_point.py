@@ -125,12 +125,12 @@ def test_rig_at_rest_decays_as_the_loop_linearised_at_its_operating_point():
     assert np.max(np.abs(np.array(fits) - levitated)) < 1e-5, (fits[-1], levitated, centred)
 
 
-def tongue_point(*overrides):
-    """The rig's config at the tongue point (0.6 rad, 21.8 rad/s), quiet, with ``overrides``; its model and motion."""
+def tilting_rig(A: float, W: float, *overrides):
+    """The quiet rig's config on pitch (A rad, W rad/s) with ``overrides``; its model, motion and period of A(t)."""
     from amb_dynamics.motion import BaseMotion
 
-    cfg = load_config(None, [*QUIET, "base_motion.amplitude=0.6", "base_motion.frequency=21.8", *overrides])
-    return cfg, build_structure(cfg), BaseMotion.from_config(cfg.base_motion), np.pi / 21.8
+    cfg = load_config(None, [*QUIET, f"base_motion.amplitude={A}", f"base_motion.frequency={W}", *overrides])
+    return cfg, build_structure(cfg), BaseMotion.from_config(cfg.base_motion), np.pi / W
 
 
 def model_rho(cfg, model, motion, T, bearing) -> float:
@@ -154,7 +154,7 @@ def test_a_tilting_rig_with_a_small_orbit_grows_as_its_floquet_model(g_scale):
     # the offsets that carry the rotor's weight scale with it
     offsets = ",".join(f"{v:.9g}" for v in np.array(load_config(None).controller.bias_current_offset) * g_scale)
     gravity = f"gravity.g={9.81 * g_scale}" if g_scale else "gravity.enabled=false"
-    cfg, model, motion, T = tongue_point(gravity, f"controller.bias_current_offset=[{offsets}]")
+    cfg, model, motion, T = tilting_rig(0.6, 21.8, gravity, f"controller.bias_current_offset=[{offsets}]")
     rho = model_rho(cfg, model, motion, T, levitated_bearing(model, cfg, 1.0 / cfg.controller.rate_hz))
     assert 1.05 < rho < 1.07
     run, fits = kicked_rig(cfg, model, motion, 3.2, T, 2)
@@ -172,14 +172,13 @@ def test_the_level_base_model_of_a_tilting_rig_is_within_the_mismatch_allowance(
     0.14 mm, where the bearing law is not linear.  The rig's growth on that orbit (noise, unbalance and runout
     off; kicked by 2 um; fitted from its positions over the last second) is 1.049 per period against the model's
     1.0560 (the loop linearised at rest on a level base), and 1.0071 against 1.0105: up to a third of the
-    model's distance from 1 (with a small orbit the rig equals its model: the test above).  The monitor's own check must
-    not call the config's rig a "model mismatch"; the level-base model is closer than the centred law."""
-    from amb_dynamics.motion import BaseMotion
+    model's distance from 1 (with a small orbit the rig equals its model: the test above).  The monitor's own
+    check must not call the config's rig a "model mismatch"; the level-base model is closer than the centred
+    law."""
     from amb_dynamics.rig_loop import levitated_bearing
     from stability_monitor.model_check import ModelValue
 
-    cfg = load_config(None, [*QUIET, f"base_motion.amplitude={A}", f"base_motion.frequency={W}"])
-    model, motion, T = build_structure(cfg), BaseMotion.from_config(cfg.base_motion), np.pi / W
+    cfg, model, motion, T = tilting_rig(A, W)
     Ts = 1.0 / cfg.controller.rate_hz
     rho = {"centred": model_rho(cfg, model, motion, T, None),
            "level": model_rho(cfg, model, motion, T, levitated_bearing(model, cfg, Ts))}  # fmt: skip

@@ -33,6 +33,7 @@ class RecordOptions:
     priority: str = "idle"
     debug_delay_s: float = 0.0  # test-only: sleep per message, to show that loss is reported
     exclude: list[str] = field(default_factory=list)
+    diagnostics_collector: str = ""  # node name of the /diagnostics reader the final report must reach
 
 
 def add_record_arguments(parser: argparse.ArgumentParser) -> None:
@@ -61,6 +62,9 @@ def add_record_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--priority", choices=PRIORITIES, default="idle",
                         help="scheduling of every recorder thread, DDS's included: idle (SCHED_IDLE, default: only "
                         "CPU time the recorded loop leaves), low (niceness +5) or normal")  # fmt: skip
+    parser.add_argument("--diagnostics-collector", default="", metavar="NODE",
+                        help="node name of a /diagnostics reader (amb-rig's collector) that the final report, "
+                        "an error's included, waits for (up to 4 s) before the recorder exits")  # fmt: skip
     parser.add_argument("--debug-delay-per-message", type=float, default=0.0, help=argparse.SUPPRESS)
 
 
@@ -88,4 +92,5 @@ def options_from_args(args: argparse.Namespace) -> RecordOptions:
         progress_interval_s=args.progress_interval,
         qos_depth=args.qos_depth, duration_s=args.duration, debug_delay_s=args.debug_delay_per_message,
         exclude=args.exclude, batch_s=args.batch * 1e-3, priority=args.priority,
+        diagnostics_collector=args.diagnostics_collector,
     )  # fmt: skip

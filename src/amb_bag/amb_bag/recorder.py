@@ -309,7 +309,12 @@ def record(opts: RecordOptions) -> dict:
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(NODE_NAME, enable_rosout=False, start_parameter_services=False)
-    recorder = Recorder(node, opts, writer, diagnostics=Diagnostics(node, period_s=DIAGNOSTICS_PERIOD_S))
+    # a named collector (amb-rig's) must hear the final report, an error's too: it waits for that reader
+    collector = opts.diagnostics_collector
+    diagnostics = Diagnostics(
+        node, period_s=DIAGNOSTICS_PERIOD_S, min_readers=int(bool(collector)), collector=collector
+    )
+    recorder = Recorder(node, opts, writer, diagnostics=diagnostics)
     recorder.scheduling = consumer_priority(opts.priority)  # after the node exists: its DDS threads are included
 
     def request_stop(_signum, _frame):

@@ -147,7 +147,9 @@ def consumer_priority(mode: str) -> str:
 
 def recorder_arguments(args) -> list[str]:
     """``amb-bag record`` arguments of a run's recorder (amb-rig and rig.launch.py)."""
-    return ["-o", str(args.bag), "--priority", consumer_priority(args.mode)]
+    out = ["-o", str(args.bag), "--priority", consumer_priority(args.mode)]
+    collector = getattr(args, "collector_name", "")
+    return out + (["--diagnostics-collector", collector] if collector else [])
 
 
 def bag_process(args, run_dir: Path) -> ProcessSpec | None:
