@@ -21,6 +21,7 @@ import yaml
 
 from .config_control import FilterConfig, StateSpaceConfig, check_control
 from .config_fields import spec as _f
+from .config_layers import read_layered
 from .config_rig import (
     ActuatorConfig,
     DisturbanceConfig,
@@ -32,7 +33,6 @@ from .config_rig import (
     check_rig,
 )
 from .errors import ConfigError
-from .yamlread import load_yaml, read_text_bounded
 
 SEED_CONFIG_NAME = "seed_rotor.yaml"
 PAPER_CONFIG_NAME = "seed_paper.yaml"  # the paper's idealised model (every paper comparison)
@@ -171,9 +171,7 @@ def paper_config_path() -> Path:
 def load_config(path: str | Path | None = None, overrides: list[str] | tuple[str, ...] = ()) -> RotorConfig:
     """Read, override and validate a rotor file; raises ConfigError with one clear line."""
     path = Path(path) if path is not None else seed_config_path()
-    data = load_yaml(read_text_bounded(path, what="config"), str(path))
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: top level must be a mapping of keys")
+    data = read_layered(path)  # with its chain of ``base:`` files merged (config_layers)
     if not overrides:
         return config_from_dict(data, str(path))
     config_from_dict(copy.deepcopy(data), str(path))  # the file alone: its errors are the file's
