@@ -14,7 +14,7 @@
    the period error p50/p99/max of the wall-clock timers (the plant's sample clock, and the controller with
    ``trigger:=timer``) and missed deadlines; then the default sample-triggered controller, whose update period
    follows the samples' arrival (sample clock + DDS latency jitter) and its sample-to-command latency; then the
-   timers at 2 kHz.
+   timers at 2 kHz, on the paper loop and on the full FE real rig with its 2 kHz controller (no modal cutoff).
    Goals: >= 2,000 lockstep steps/s; realtime p99 period error < 100 us.
 4. Executor trial: the same ping-pong driven by subscription callbacks of rclpy's EventsExecutor
    (rclpy.experimental) and of the standard SingleThreadedExecutor, against the nodes' own wait-set path,
@@ -44,6 +44,7 @@ from report import record, record_ratio
 BIN = Path(sys.executable).parent
 # the paper's loop: its plant is fast, so these figures measure DDS and the nodes (the goals were set for it)
 PAPER = ["--config", str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")]
+RIG_2KHZ = Path(__file__).resolve().parents[1] / "config" / "seed_rotor_2khz.yaml"  # the real rig's 2 kHz loop
 GOAL_STEPS_PER_S = 2000.0
 GOAL_P99_US = 100.0
 GOAL_REAL_RIG_RATIO = 0.9  # the real-rig default's lockstep steps/s over the paper config's, same run
@@ -227,14 +228,19 @@ def lockstep(duration: float, rt_priority: int, real_rig: bool = False) -> dict:
             "scheduling": s["nodes"]["plant"]["values"]["scheduling"]}  # fmt: skip
 
 
-def realtime(trigger: str, rate_hz: int = 1000, duration: float = 5.0) -> dict:
+def realtime(trigger: str, rate_hz: int = 1000, duration: float = 5.0, real_rig: bool = False) -> dict:
     # static base, centred rotor: the linear state stays zero whatever the timing (see tests/test_rig_realtime.py);
-    # the paper loop with modal_cutoff 800 rad/s is stable at 1 and 2 kHz (amb-dynamics modes says so)
-    s = rig(["--mode", "realtime", "--duration", str(duration), "--motion", "none", "--set",
-             f"controller.rate_hz={rate_hz}", "--set", "modal_cutoff=800", "--param", f"controller:trigger={trigger}"],
-            require_ok=False)  # fmt: skip
+    # the paper loop with modal_cutoff 800 rad/s is stable at 1 and 2 kHz (amb-dynamics modes says so); real_rig:
+    # the full FE real rig with its 2 kHz controller (config/seed_rotor_2khz.yaml), every effect on
+    args = ["--mode", "realtime", "--duration", str(duration), "--motion", "none", "--param",
+            f"controller:trigger={trigger}"]  # fmt: skip
+    if real_rig:
+        s = rig(args, require_ok=False, config=["--config", str(RIG_2KHZ)])
+    else:
+        s = rig([*args, "--set", f"controller.rate_hz={rate_hz}", "--set", "modal_cutoff=800"], require_ok=False)
     c, p = s["nodes"]["controller"]["values"], s["nodes"]["plant"]["values"]
     out = {
+        "samples_lost": c.get("samples lost", "?"),
         "trigger": trigger,
         "scheduling": c["scheduling"],
         "ticks": int(c["ticks"]),
@@ -276,6 +282,7 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         for path in paths:
             paths[path].append(pingpong(round_trips, path))
     timer, sample, timer2 = realtime("timer"), realtime("sample"), realtime("timer", 2000)
+    rig2 = realtime("timer", 2000, real_rig=True)
     cpu = cpu_per_step()
     base = 0.5 * (pp1 + pp2)
     normal = statistics.median(r["steps_per_s"] for r in runs[0])
@@ -301,6 +308,7 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         "realtime_1khz_timer": timer,
         "realtime_1khz_sample": sample,
         "realtime_2khz_timer": timer2,
+        "realtime_2khz_real_rig_timer": rig2,
         "realtime_goal_met": timers_p99 < GOAL_P99_US,
         "cpu_us_per_step": [c["us_per_step"] for c in cpu],
         "pingpong_cpu_us_per_round_trip": {side: [d[f"{side}_cpu_us"] for d in (d1, d2) if f"{side}_cpu_us" in d]
@@ -355,6 +363,20 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
                  f"{timer2['p50_us']:.0f}/{timer2['p99_us']:.0f}/{timer2['max_us']:.0f}",
                  f"plant {timer2['plant_p50_us']:.0f}/{timer2['plant_p99_us']:.0f}/{timer2['plant_max_us']:.0f}; "
                  f"{timer2['missed_deadlines']} + {timer2['plant_missed_deadlines']} missed deadlines"))  # fmt: skip
+    record(
+        "realtime 2 kHz timer period error p99, controller, real rig (seed_rotor_2khz.yaml)",
+        rig2["p99_us"],
+        "us",
+        goal="< 100",
+        note=f"{rig2['missed_deadlines']} missed deadlines, {rig2['samples_lost']} samples lost",
+    )
+    record("realtime 2 kHz timer period error p99, plant, real rig (seed_rotor_2khz.yaml)", rig2["plant_p99_us"], "us",
+           goal="< 100", note=f"{rig2['plant_missed_deadlines']} missed deadlines")  # fmt: skip
+    rows.append(("realtime 2 kHz, real rig (2 kHz controller): controller, plant",
+                 f"{rig2['p50_us']:.0f}/{rig2['p99_us']:.0f}/{rig2['max_us']:.0f}",
+                 f"plant {rig2['plant_p50_us']:.0f}/{rig2['plant_p99_us']:.0f}/{rig2['plant_max_us']:.0f}; "
+                 f"{rig2['missed_deadlines']} + {rig2['plant_missed_deadlines']} missed deadlines; "
+                 f"{rig2['samples_lost']} samples lost; {'; '.join(rig2['errors']) or 'run OK'}"))  # fmt: skip
     for proc, goal in CPU_NODES.items():
         total = [sum(c["us_per_step"][proc].values()) for c in cpu]
         main_thread = [c["us_per_step"][proc]["main"] for c in cpu]
