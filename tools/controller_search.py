@@ -10,7 +10,7 @@ of |S_jj| (ISO 14839-3) over every axis, speed and variant, where every one of t
 radius).  scipy's differential evolution varies kp and kd (multiples of the config's; ki kp >= 1.3 |ks|, so the
 bearing keeps 30 % of the net stiffness of the default), the zero and pole of each lead-lag and the frequency,
 width and depth of each notch.  Prints the result per speed and variant, the peaks by amb-dynamics sensitivity's
-own method, and the controller section of a rotor file (config/seed_rotor_2khz.yaml came from the defaults).
+own method, and the controller section of a rotor file (config/seed_rotor_2khz.yaml: ``--maxiter 150``).
 """
 
 from __future__ import annotations
