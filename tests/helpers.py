@@ -31,7 +31,13 @@ from procs import spawn
 
 # ---- DDS and amb-rig (moved from test_rig_lockstep.py) ---------------------------------------------------------
 class DdsRecorder:
-    """Records raw messages of some topics in this process (own rclpy context, spun in a thread)."""
+    """Records raw messages of some topics in this process (own rclpy context, spun in a thread).
+
+    A topic's subscription is created once a publisher of it is known here, as amb-bag record does.  The reader
+    then matches the writer at once, and the writer's reader count (the rig's start gates) tells that the reader
+    gets its first sample.  Subscribed before the writer exists, the reader may match it only after the writer
+    has matched the reader and sent: a volatile reader drops that sample (seen: step 0's current, in CI).
+    """
 
     def __init__(self, topics: dict, qos=None, name: str = "test_recorder"):
         import rclpy
@@ -44,18 +50,23 @@ class DdsRecorder:
         self.node = rclpy.create_node(name, context=self.ctx)
         self.messages: dict[str, list] = {t: [] for t in topics}
         qos = qos if qos is not None else lockstep_qos(100000)
-        for topic, msg_type in topics.items():
-            q = diagnostics_qos() if topic == "/diagnostics" else qos
-            self.node.create_subscription(msg_type, topic, self.messages[topic].append, q)
+        self._pending = {t: (ty, diagnostics_qos() if t == "/diagnostics" else qos) for t, ty in topics.items()}
         self.executor = SingleThreadedExecutor(context=self.ctx)
         self.executor.add_node(self.node)
         self._stop = threading.Event()
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
 
+    def _subscribe_published(self):
+        for topic in [t for t in self._pending if self.node.count_publishers(t) > 0]:
+            msg_type, qos = self._pending.pop(topic)
+            self.node.create_subscription(msg_type, topic, self.messages[topic].append, qos)
+
     def _spin(self):
         while not self._stop.is_set():
-            self.executor.spin_once(timeout_sec=0.05)
+            if self._pending:
+                self._subscribe_published()
+            self.executor.spin_once(timeout_sec=0.005 if self._pending else 0.05)
 
     def close(self):
         self._stop.set()
