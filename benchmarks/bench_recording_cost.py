@@ -112,8 +112,10 @@ def rig_steps_per_s(bag: Path | None, reader: bool = False, burn: float = 0.0) -
         proc = subprocess.Popen([sys.executable, __file__, "--reader"], env=child_env(), stdout=subprocess.PIPE,
                                 text=True)  # fmt: skip
     burner = subprocess.Popen([sys.executable, __file__, "--burn", str(burn)]) if burn else None
+    t0 = time.monotonic()
     try:
         out = subprocess.run(cmd, env=child_env(), capture_output=True, text=True, timeout=600)
+        command_s = time.monotonic() - t0
     finally:
         if proc is not None:
             proc.send_signal(signal.SIGINT)
@@ -129,7 +131,8 @@ def rig_steps_per_s(bag: Path | None, reader: bool = False, burn: float = 0.0) -
         raise RuntimeError(f"amb-rig: {summary['errors']}")
     plant = summary["nodes"]["plant"]["values"]
     row = {"steps": summary["steps"], "steps_per_s": summary["steps_per_s"],
-           "wait_max_s": float(plant.get("command wait max (us)", "nan")) * 1e-6}  # fmt: skip
+           "wait_max_s": float(plant.get("command wait max (us)", "nan")) * 1e-6,
+           "connect_s": float(plant.get("connect time (s)", "nan")), "command_s": command_s}  # fmt: skip
     if bag is not None:
         rec = summary["nodes"]["recorder"]["values"]
         loop_wall = float(plant["wall time (s)"])
@@ -187,6 +190,8 @@ def bench_recording_cost(tmp: Path, pairs: int = RIG_PAIRS) -> dict:
         "recorder_cpu_share": statistics.median(b["recorder_cpu_share"] for _, b in pairs_bag),
         "wait_max_without": [a["wait_max_s"] for a, _ in pairs_bag],
         "wait_max_with": [b["wait_max_s"] for _, b in pairs_bag],
+        "connect_s_without": [a["connect_s"] for a in without],
+        "command_s_without": [a["command_s"] for a in without],
         "messages_per_run": pairs_bag[0][1]["messages"],
         "lost": sum(b["lost"] for _, b in pairs_bag),
         "failed_runs": failed,
@@ -221,6 +226,9 @@ def main() -> dict:
     print(f"  longest plant command wait per run (s): without --bag {', '.join(f'{w:.3f}' for w in waits['without'])}"
           f"; with --bag {', '.join(f'{w:.3f}' for w in waits['with'])} (stalls over {STALL_S:g} s: without "
           f"{stalls['without']}, with {stalls['with']} of {len(waits['with'])})")  # fmt: skip
+    print(f"  start-up without --bag: the plant waited {', '.join(f'{w:.2f}' for w in cost['connect_s_without'])} s "
+          f"for its peers and amb-rig's collector; the whole command took "
+          f"{', '.join(f'{w:.1f}' for w in cost['command_s_without'])} s for {RIG_DURATION:g} s simulated")  # fmt: skip
     for line in cost["failed_runs"]:
         print(f"  FAILED run (its pair left out): {line}")
     pct = [100 * c for c in cost["pair_costs"]]
@@ -231,6 +239,10 @@ def main() -> dict:
            [100 * c for c in cost["busy_loop_costs"]], "%")  # fmt: skip
     record("lockstep steps/s without --bag (the pairs above)", cost["runs_without"], "steps/s")
     record("lockstep steps/s with --bag (the pairs above)", cost["runs_with"], "steps/s")
+    record("amb-rig start-up: the plant's wait for its peers and the collector (runs without --bag)",
+           cost["connect_s_without"], "s", goal="< 1")  # fmt: skip
+    record(f"amb-rig run --duration {RIG_DURATION:g} --no-monitor, whole command (runs without --bag)",
+           cost["command_s_without"], "s")  # fmt: skip
     return cost
 
 
