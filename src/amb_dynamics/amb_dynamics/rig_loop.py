@@ -119,29 +119,62 @@ def simulate_rig(
 
     Starts levitated (``levitated_state``, as the plant node does) plus ``x0`` ([q; q'] or the full plant state).
     """
-    Ts = Ts if Ts is not None else 1.0 / cfg.controller.rate_hz
-    limit = cfg.controller.current_limit if current_limit is None else current_limit
-    plant = RigPlant(model, cfg, Ts, current_limit=limit, motion=motion)
-    ctrl = RigController(cfg, model.gains, Ts, limit, fail_at_s)
-    N = plant.N
-    t = np.arange(steps + 1) * Ts
-    Om, dOm = motion.angular_velocity(t)
-    Om, dOm = np.ascontiguousarray(Om.T), np.ascontiguousarray(dOm.T)
-    x = np.zeros((steps + 1, N))
-    x[0] = levitated_state(plant, cfg)
-    if x0 is not None:
-        x[0, : len(x0)] += x0
-    y = np.empty((steps + 1, 4))
-    disp = np.empty((steps + 1, 4))
-    cur = np.empty((steps, 4))
-    spin = np.empty(steps + 1)
-    for k in range(steps):
-        y[k] = plant.measure(x[k])
-        disp[k] = plant.displacement(x[k])
-        spin[k] = plant.spin_speed()
-        cur[k] = ctrl.step(k, y[k])
-        x[k + 1] = plant.step(x[k], cur[k], Om[k], dOm[k])
-    y[steps] = plant.measure(x[steps])
-    disp[steps] = plant.displacement(x[steps])
-    spin[steps] = plant.spin_speed()
-    return RigRun(t, x, y, disp, cur, spin, plant.contact.events, plant.labels)
+    stepper = RigStepper(model, cfg, motion, steps, x0, Ts, fail_at_s, current_limit)
+    stepper.advance(steps)
+    return stepper.run()
+
+
+class RigStepper:
+    """``simulate_rig`` a chunk at a time: ``advance(k)`` steps up to step k; ``run()`` is the run so far.
+
+    For a caller that may stop early (a Monte Carlo run that ends once its monitors have flagged): the arrays are
+    those of the whole run, filled as far as it went; the same steps give the same numbers as ``simulate_rig``.
+    """
+
+    def __init__(self, model, cfg, motion, steps, x0=None, Ts=None, fail_at_s=None, current_limit=None):
+        Ts = Ts if Ts is not None else 1.0 / cfg.controller.rate_hz
+        limit = cfg.controller.current_limit if current_limit is None else current_limit
+        self.plant = plant = RigPlant(model, cfg, Ts, current_limit=limit, motion=motion)
+        self.ctrl = RigController(cfg, model.gains, Ts, limit, fail_at_s)
+        self.steps, self.k = steps, 0
+        self.t = np.arange(steps + 1) * Ts
+        Om, dOm = motion.angular_velocity(self.t)
+        self.Om, self.dOm = np.ascontiguousarray(Om.T), np.ascontiguousarray(dOm.T)
+        self.x = np.zeros((steps + 1, plant.N))
+        self.x[0] = levitated_state(plant, cfg)
+        if x0 is not None:
+            self.x[0, : len(x0)] += x0
+        self.y = np.empty((steps + 1, 4))
+        self.disp = np.empty((steps + 1, 4))
+        self.cur = np.empty((steps, 4))
+        self.spin = np.empty(steps + 1)
+        self.closed = False  # the closing sample (k = steps) is measured
+
+    @property
+    def measured(self) -> int:
+        """Samples k = 0 .. measured - 1 are measured (y, displacement, spin)."""
+        return self.k + 1 if self.closed else self.k
+
+    def advance(self, k_end: int) -> None:
+        """Steps self.k .. min(k_end, steps) - 1; the closing sample is measured once the last step is done."""
+        plant, ctrl, x, y, disp, cur, spin = self.plant, self.ctrl, self.x, self.y, self.disp, self.cur, self.spin
+        Om, dOm = self.Om, self.dOm
+        k_end = min(k_end, self.steps)
+        for k in range(self.k, k_end):
+            y[k] = plant.measure(x[k])
+            disp[k] = plant.displacement(x[k])
+            spin[k] = plant.spin_speed()
+            cur[k] = ctrl.step(k, y[k])
+            x[k + 1] = plant.step(x[k], cur[k], Om[k], dOm[k])
+        self.k = max(self.k, k_end)
+        if self.k == self.steps and not self.closed:
+            y[self.k] = plant.measure(x[self.k])
+            disp[self.k] = plant.displacement(x[self.k])
+            spin[self.k] = plant.spin_speed()
+            self.closed = True
+
+    def run(self) -> RigRun:
+        """The run up to the last measured sample."""
+        n = self.measured
+        return RigRun(self.t[:n], self.x[:n], self.y[:n], self.disp[:n], self.cur[: min(n, self.steps)],
+                      self.spin[:n], self.plant.contact.events, self.plant.labels)  # fmt: skip
