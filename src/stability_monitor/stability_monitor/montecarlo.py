@@ -101,7 +101,7 @@ def mc_run(overrides: tuple[str, ...], seconds: float, period: float, forcing: s
     """One Monte Carlo run: noise seed ``seed``, unbalance phase uniform in [0, 360) deg from the same seed.
 
     With ``stop_on_flags`` the run ends at the first CHUNK_S boundary after every mode has flagged (the flag times
-    are those of the whole run: a flag stays up).  Returns arrays: ``sim_s`` (CPU), ``simulated_s``; per mode
+    are those of the whole run: each is its first flag's).  Returns arrays: ``sim_s`` (CPU), ``simulated_s``; per mode
     (full, sensor) ``<mode>_flag_s`` (NaN: never raised), ``<mode>_cost_s`` (per sample), ``<mode>_t`` and
     ``<mode>_rho`` (the excited estimates, in order)."""
     phase = float(np.random.default_rng(seed).uniform(0.0, 360.0))
