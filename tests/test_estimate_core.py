@@ -15,12 +15,15 @@ from amb_dynamics.estimator.fit import (
     COLLECTING,
     INSUFFICIENT,
     MARGINAL,
+    REL_FLOOR,
     STABLE,
     UNSTABLE,
     InstabilityFlag,
     MapFit,
     VerdictPolicy,
     fit_period_map,
+    noise_floor,
+    plateau_floor,
 )
 from amb_dynamics.estimator.period import estimate_base_period
 from amb_dynamics.estimator.stream import EstimatorConfig, StreamingEstimator, estimate_series
@@ -35,6 +38,19 @@ def test_noise_free_fit_is_exact(forcing):
     assert fit.excited and fit.rank == len(MU) == fit.signal_rank
     assert matched(fit.multipliers, MU) < 1e-9
     assert abs(fit.rho - 1.03) < 1e-10 and fit.rho_std < 1e-8
+
+
+@pytest.mark.parametrize("noise", [None, 1e-6, 1e-3])
+def test_the_noise_floor_is_that_of_the_data_2_norm(noise):
+    # the fit skips the SVD of Z where the Frobenius norm shows that its 2-norm cannot change the floor
+    Z = synthetic(MU, 14, forcing="constant", noise=noise or 0.0)
+    fit = fit_period_map(Z, "constant", row_noise=noise)
+    free = Z.shape[1] - 1 - 1  # pairs left once the constant forcing is removed
+    exact = noise_floor(noise, Z.shape[0], free, float(np.linalg.norm(Z, 2)))
+    assert (exact == REL_FLOOR * np.linalg.norm(Z, 2)) == (noise is None)  # both branches are taken
+    if noise is not None:  # noisy data: the innovations' plateau may lie higher
+        exact = max(exact, plateau_floor(fit.singular_values, Z.shape[0]))
+    assert fit.noise_floor == exact
 
 
 def test_unmodelled_forcing_is_not_exact():

@@ -142,7 +142,12 @@ def fit_period_map(
     Q = forcing_complement(pairs, forcing)
     Xm, Xp = Z[:, :-1] @ Q, Z[:, 1:] @ Q
     U, s, Vh = np.linalg.svd(Xm, full_matrices=False)
-    floor = noise_floor(row_noise, m, free, float(np.linalg.norm(Z, 2)))
+    # the round-off floor is REL_FLOOR ||Z||_2; the Frobenius norm bounds ||Z||_2 from above, so where the noise
+    # floor is well above REL_FLOOR ||Z||_F the 2-norm (an SVD of Z per refit) cannot change the result
+    frobenius = float(np.linalg.norm(Z))
+    floor = noise_floor(row_noise, m, free, frobenius)
+    if floor <= 2.0 * REL_FLOOR * frobenius:
+        floor = noise_floor(row_noise, m, free, float(np.linalg.norm(Z, 2)))
     if row_noise is not None:  # noisy data: the innovations of process noise are noise too
         floor = max(floor, plateau_floor(s, m))
     signal_rank = int(np.count_nonzero(s > (floor if row_noise is None else KEEP_FACTOR * floor)))
