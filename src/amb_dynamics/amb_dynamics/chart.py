@@ -7,7 +7,10 @@ few Chebyshev amplitudes plus two check amplitudes (the grid amplitudes farthest
 interpolated (barycentric) to the grid; the nodes are doubled until rho at the check amplitudes agrees to
 ``AMP_TOL`` (:func:`interpolated_row`, shared with the digital-loop chart).  The commutator of Omega_4 comes from
 precomputed pair commutators of the basis matrices, and a diagonal similarity (matrix balancing) keeps ||h A||
-small.  Exponentials are batched in bounded blocks.  Rows run in parallel processes.
+small.  Exponentials are batched in bounded blocks.  The eigenvalues are those of the monodromies compressed to
+the span of their columns (:func:`reduce_to_range`): a damped rotor's monodromy has many multipliers at rounding
+level, and an eigenvalue problem of their numerical rank (14-37 of 56 states on the paper rotor) costs a fraction
+of the full one.  Rows run in parallel processes.
 Agreement with single-point Magnus and with scipy solve_ivp is shown in tests and in ``make bench``.
 """
 
@@ -32,6 +35,7 @@ CHART_STEPS = 32  # Magnus steps per period: converged to < 2e-7 in rho on the s
 A_NODES = 6  # first number of Chebyshev amplitudes per row (doubled until the check amplitudes agree)
 AMP_TOL = 1e-10  # |rho_interp - rho_exact| at the check amplitudes
 AMP_BLOCK = 4  # amplitudes whose step maps are held at once (bounded temporaries)
+RANGE_TOL = 1e-15  # singular values of the monodromies' columns kept for the eigenvalues (relative to the largest)
 EVEN_COEFFICIENTS = frozenset({"Ox2", "Oy2", "Oz2", "OyOz", "Oyz2"})  # products of two base rates: even in A
 
 
@@ -42,6 +46,8 @@ def continuous_method(steps: int = CHART_STEPS) -> dict:
         "steps_per_period": steps,
         "amplitude": f"monodromy interpolated from {A_NODES} Chebyshev nodes (in A^2 for pitch and yaw, in A for "
         f"roll), nodes doubled until rho at two check amplitudes agrees to {AMP_TOL:g}",
+        "eigenvalues": f"of the monodromies compressed to their common numerical range (singular values above "
+        f"{RANGE_TOL:g} of the largest)",
     }
 
 
@@ -115,6 +121,24 @@ def amplitude_nodes(amps: np.ndarray, n: int, even: bool):
     return nodes, W, np.sort(np.argsort(-dist, kind="stable")[:2])
 
 
+def reduce_to_range(*stacks: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The stacks compressed to the common numerical range of all their matrices: U^T P U for each P.
+
+    Every matrix of the stacks, and every linear combination of them (the interpolated monodromies), maps into the
+    span of their columns; with U an orthonormal basis of that span, P = U (U^T P), so the nonzero eigenvalues of
+    P are those of U^T P U (r x r).  Directions whose singular value is below ``RANGE_TOL`` times the largest
+    are dropped: a change of P below its own rounding error.
+    """
+    d = stacks[0].shape[-1]
+    cols = np.concatenate([s.transpose(1, 0, 2).reshape(d, -1) for s in stacks], axis=1)
+    U, sv, _ = np.linalg.svd(cols, full_matrices=False)
+    r = int((sv > RANGE_TOL * sv[0]).sum()) if sv.size and sv[0] > 0 else d
+    if r >= d:
+        return stacks
+    U = U[:, :r]
+    return tuple(U.T @ s @ U for s in stacks)
+
+
 def interpolated_row(
     monodromies: Callable[[np.ndarray], np.ndarray],
     amps: np.ndarray,
@@ -131,6 +155,7 @@ def interpolated_row(
         if W is None:
             rho, crit = critical(Pn)
             return rho, crit, 0.0
+        Pn, Pc = reduce_to_range(Pn, Pc)
         Pg = (W @ Pn.reshape(nodes.size, -1)).reshape(amps.size, *Pn.shape[1:])
         rho, crit = critical(Pg)
         err = float(np.abs(critical(Pc)[0] - rho[checks]).max())

@@ -24,7 +24,7 @@ from .structure import build_structure
 from .system import closed_loop
 
 SCHEMA_VERSION = 1
-CACHE_VERSION = "chart-4"  # bump when the numbers a chunk produces change
+CACHE_VERSION = "chart-5"  # bump when the numbers a chunk produces change
 _MEMO: dict[bytes, object] = {}
 
 
@@ -48,6 +48,7 @@ class ChartSpec:
             "step_map_chebyshev_nodes": U_NODES,
             "amplitude_chebyshev_nodes": A_NODES,
             "amplitude_check_tolerance": AMP_TOL,
+            "eigenvalues": continuous_method()["eigenvalues"],
             "method_codes": {"0": "exact", "1": "ratio-interpolation"},
         }
 

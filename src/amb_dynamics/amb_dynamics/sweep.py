@@ -27,7 +27,7 @@ from .digital_chart import digital_row
 from .errors import InputError
 from .structure import build_structure
 
-CACHE_VERSION = "sweep-2"
+CACHE_VERSION = "sweep-3"
 
 
 def parse_axis(text: str) -> tuple[str, np.ndarray]:
