@@ -93,9 +93,13 @@ def run_realtime(node) -> None:
         if period is not None:
             node.period_error.add(abs(period - node.Ts_ns) * 1e-9)
         node.k_now = k
-        if k > 0:
+        # the command's age counts the samples this plant published, so that a plant that falls behind (skipped
+        # ticks, reported as missed deadlines) does not blame the controller; before the controller's first
+        # command the rotor stays at its start state
+        current = node.policy.current(node.samples_out) if node.samples_out else None
+        if current is not None:
             om, dom = node.latest_rates
-            node.advance(np.concatenate([om, dom]), node.policy.current(k))
+            node.advance(np.concatenate([om, dom]), current)
         node.publish_outputs(k, node.get_clock().now().nanoseconds)
         if end is not None and time.monotonic() >= end:
             node.finished = True

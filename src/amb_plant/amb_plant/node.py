@@ -161,7 +161,8 @@ class PlantNode(RigNode):
         self.rates: dict[int, np.ndarray] = {}  # lockstep: step -> [Omega, dOmega]
         self.latest_rates = (np.zeros(3), np.zeros(3))
         self.k_now = 0  # lockstep: the step being computed; realtime: the current tick
-        self.sample_index: dict[int, int] = {}  # realtime: stamp of a published sample -> its tick
+        self.sample_index: dict[int, int] = {}  # realtime: stamp of a published sample -> its index
+        self.samples_out = 0  # realtime: samples published (a command's age counts them, not wall-clock ticks)
 
     def initial_state(self, disk_v: float) -> np.ndarray:
         n = self.model.n
@@ -258,7 +259,8 @@ class PlantNode(RigNode):
             )
         self.disp_pub.publish(self.disp_codec.encode(stamp_ns, self.sensor.measure(self.rig.measure(self.x))))
         if self.mode == "realtime":
-            self.sample_index[stamp_ns] = k
+            self.sample_index[stamp_ns] = self.samples_out
+            self.samples_out += 1
             self.sample_index.pop(stamp_ns - SAMPLE_MEMORY * self.Ts_ns, None)  # bounded memory (approximately)
             if len(self.sample_index) > 2 * SAMPLE_MEMORY:
                 self.sample_index = dict(list(self.sample_index.items())[-SAMPLE_MEMORY:])
@@ -384,7 +386,8 @@ class PlantNode(RigNode):
             pol = self.policy
             out.update({Plant.late_commands_held.text: str(pol.held), Plant.zero_current.text: str(pol.zeroed),
                         Plant.command_losses.text: str(pol.losses), "command state": pol.state,
-                        "missed deadlines": str(self.missed), "skipped ticks": str(self.skipped)})  # fmt: skip
+                        "missed deadlines": str(self.missed), "skipped ticks": str(self.skipped),
+                        "ticks before the first command": str(pol.waiting)})  # fmt: skip
             out.update(self.period_error.summary("period error"))
             out["samples answered"] = str(self.sample_round_trip.count)
             out.update(self.sample_round_trip.summary("round trip"))

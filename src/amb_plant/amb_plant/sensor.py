@@ -53,21 +53,24 @@ class CommandPolicy:
         self.last_k = -1
         self.held = 0  # samples applied with a late (held) command
         self.zeroed = 0  # samples with zero current because commands stopped
-        self.waiting = 0  # samples before the first command
+        self.waiting = 0  # ticks before the first command (the plant holds its start state)
         self.losses = 0  # times the command stream went silent beyond the hold window
         self.state = "waiting"
 
     def command(self, current: np.ndarray, answered_k: int) -> None:
-        """A command that answers sample ``answered_k``; an older one than the latest is ignored."""
+        """A command that answers published sample ``answered_k`` (the plant's sample index, not its wall-clock
+        tick); an older one than the latest is ignored."""
         if answered_k >= self.last_k:
             self.last, self.last_k = current, answered_k
             self.state = "ok"
 
-    def current(self, k: int) -> np.ndarray:
-        """Current to apply over [t_{k-1}, t_k] (A)."""
+    def current(self, k: int) -> np.ndarray | None:
+        """Current to apply over the step after published sample k - 1 (A); None before the first command:
+        levitation starts with the controller, so the plant holds the rotor at its start state (at rest on the
+        controller) until then."""
         if self.last is None:
             self.waiting += 1
-            return self.zero
+            return None
         age = k - 1 - self.last_k  # samples of delay beyond the model's
         if age <= 0:
             self.state = "ok"
