@@ -98,6 +98,7 @@ def main() -> None:
     ap.add_argument("--maxiter", type=int, default=50)
     ap.add_argument("--popsize", type=int, default=10)
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--delay-samples", type=int, default=0, help="computation delay of the loop (samples)")
     args = ap.parse_args()
     base = load_config(None)
     c, b = base.controller, base.bearings
@@ -107,7 +108,8 @@ def main() -> None:
     bounds += [(50.0, top), (5.0, 600.0), (0.0, 1.0)] * args.notches
 
     def sets_of(x):
-        return controller_sets(x, args.rate, c.proportional_gain, c.derivative_gain, args.lead_lags)
+        sets = controller_sets(x, args.rate, c.proportional_gain, c.derivative_gain, args.lead_lags)
+        return [*sets, f"controller.delay_samples={args.delay_samples}"]
 
     best = [np.inf]
 
@@ -138,7 +140,8 @@ def main() -> None:
             + ", ".join(f"{k} {v['peak_abs']:.3g} at {v['peak_hz']:.3g} Hz ({v['zone']})" for k, v in axes.items())
         )
     print("controller:")
-    print(f"  rate_hz: {args.rate:g}\n  proportional_gain: {c.proportional_gain * res.x[0]:.8g}")
+    print(f"  rate_hz: {args.rate:g}\n  delay_samples: {args.delay_samples}")
+    print(f"  proportional_gain: {c.proportional_gain * res.x[0]:.8g}")
     print(f"  derivative_gain: {c.derivative_gain * res.x[1]:.8g}\n  filters:")
     for f in filters_yaml(res.x, args.lead_lags):
         print(f"    - {f}")
