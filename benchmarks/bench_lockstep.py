@@ -145,6 +145,8 @@ def _pingpong_callbacks(role: str, n: int, path: str, node, pub, sub_unused, cod
                 done.set_result(True)
             return
         k = int(codec.decode(raw)[1][0])
+        if k < count[0]:  # the echo of a resent first ping
+            return
         if k != count[0]:
             raise SystemExit("pingpong: echo out of order")
         count[0] += 1
@@ -154,19 +156,30 @@ def _pingpong_callbacks(role: str, n: int, path: str, node, pub, sub_unused, cod
         y[0] = count[0]
         pub.publish(codec.encode(count[0], y))
 
-    node.create_subscription(JointState, in_t, on_message, lockstep_qos(), raw=True)
+    sub = node.create_subscription(JointState, in_t, on_message, lockstep_qos(), raw=True)
     executor = EventsExecutor() if path == "events" else SingleThreadedExecutor()
     executor.add_node(node)
-    time.sleep(0.5)  # the new subscription is matched
-    if role == "ping":
-        t0[0] = time.perf_counter()
-        pub.publish(codec.encode(0, y))
+    end = time.monotonic() + 30.0  # both of this side's endpoints matched again (the new subscription too)
+    while (pub.get_subscription_count() < 1 or sub.get_publisher_count() < 1) and time.monotonic() < end:
+        time.sleep(0.01)
+    time.sleep(0.5)  # and the other side's
+    if role == "ping":  # the first ping again until it is echoed: a reader that did not yet know this writer
+        for _ in range(20):  # drops a volatile sample (the later echoes of a resent one are ignored)
+            t0[0] = time.perf_counter()
+            pub.publish(codec.encode(0, y))
+            while count[0] == 0 and time.perf_counter() - t0[0] < 0.5:
+                executor.spin_once(timeout_sec=0.05)
+            if count[0]:
+                break
     executor.spin_until_future_complete(done, timeout_sec=60.0)
     if not done.done():
         raise SystemExit(f"pingpong {role} ({path}): not finished in 60 s")
     if role == "ping":
         print(json.dumps({"round_trips_per_s": done.result()}), flush=True)
-    else:
+    else:  # a resent first ping makes one message more than n: echo until the ping side has left
+        end = time.monotonic() + 5.0
+        while node.count_publishers(in_t) > 0 and time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
         pub.wait_for_all_acked()
     executor.shutdown()
     node.destroy_node()
