@@ -32,3 +32,34 @@ def test_fresh_held_then_zero_by_the_age_in_published_samples():
     assert pol.current(3 + HOLD) is j and pol.state == "ok"
     pol.command(i, answered_k=1)  # an older answer than the newest is ignored
     assert pol.current(3 + HOLD) is j
+
+
+def test_one_sample_of_loop_delay_applies_each_command_one_step_later():
+    """controller.delay_samples = 1: the command answering sample k acts over the step after sample k + 1, whether
+    it arrived at once or one period later; the step after sample k still runs on the answer to k - 1."""
+    pol = CommandPolicy(4, HOLD, delay_samples=1)
+    a, b, c = (np.full(4, v) for v in (1.0, 2.0, 3.0))
+    pol.command(a, answered_k=0)
+    assert pol.current(1) is None and pol.waiting == 1  # the step after sample 0: nothing due yet
+    pol.command(b, answered_k=1)  # the answer to sample 1 is already in ...
+    assert pol.current(2) is a and pol.state == "ok"  # ... but the step after sample 1 runs on the answer to 0
+    assert pol.current(3) is b and pol.state == "ok"  # the step after sample 2: the answer to 1, on time
+    assert pol.current(4) is b and pol.state == "holding" and pol.held == 1  # the answer to 2 is late: held
+    pol.command(c, answered_k=3)  # the answer to 2 never came; the one to 3 did
+    assert pol.current(5) is c and pol.state == "ok"
+
+
+def test_levitation_starts_once_the_loop_keeps_up():
+    """start_samples = 3: the rotor is held until three consecutive steps found their command on time; a late one
+    in between starts the count again."""
+    pol = CommandPolicy(4, HOLD, delay_samples=0, start_samples=3)
+    i = np.ones(4)
+    pol.command(i, answered_k=0)
+    assert pol.current(1) is None  # the step after sample 0, its answer on time: 1
+    assert pol.current(2) is None  # the answer to sample 1 is missing: 0
+    for k in (3, 4):
+        pol.command(i * k, answered_k=k - 1)
+        assert pol.current(k) is None  # on time: 1, 2
+    pol.command(i * 5, answered_k=4)
+    assert np.array_equal(pol.current(5), i * 5) and pol.state == "ok"  # on time: 3, levitation starts
+    assert pol.waiting == 4

@@ -109,7 +109,10 @@ class ControllerNode(RigNode):
         self.gain_set, self.safe_switch_t, self.unstable_sub = "nominal", None, None
         fail = p["fail_at_s"] if p["fail_at_s"] >= 0 else None
         # the core's controller (PID + bias offset, zero current from fail_at_s): the offline rig loop runs the same
-        self.rig_ctrl = RigController(cfg, AMBGains.from_config(cfg), self.Ts, p["current_limit"], fail)
+        # realtime: the plant applies a command from the sample after the one it answers (controller.delay_samples,
+        # as a DSP updates its DAC at the next tick), so the law answers at once; lockstep: the law delays
+        law_cfg = cfg if self.mode == "lockstep" else replace(cfg, controller=replace(cfg.controller, delay_samples=0))
+        self.rig_ctrl = RigController(law_cfg, AMBGains.from_config(cfg), self.Ts, p["current_limit"], fail)
         self.pid = self.rig_ctrl.law  # the PID, with its filters (or the user's state space: no PID gains)
         if self.pid.c is not None:
             self.pid.c = self.coefficients("nominal")  # the gains as given (parameters may override the config)

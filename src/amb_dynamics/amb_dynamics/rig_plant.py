@@ -240,6 +240,12 @@ class RigPlant:
             self._families[key] = fam
         return fam if fam.covers(w, v) else None
 
+    def warm_up(self) -> None:
+        """Build the config motion's step interpolant at the start speed now (~0.1 s) instead of in the first moving
+        step, which a realtime plant cannot afford (a 0.13 s stall there dropped the rotor)."""
+        if self._axis is not None and self._box[0] > 0.0:
+            self.step_matrices(0.5 * self._box[0] * np.eye(3)[self._axis], np.zeros(3), self.spin_speed(0))
+
     def step_matrices(self, Omega: np.ndarray, dOmega: np.ndarray, spin: float, h: float | None = None):
         """The matrices of a step at ``spin``: exact at a constant speed; during a ramp linear interpolation between
         the cached matrices of the SPIN_GRID speeds around it (error O(SPIN_GRID^2); the speed-dependent terms

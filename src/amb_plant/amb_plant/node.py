@@ -71,6 +71,11 @@ def specs() -> list[ParamSpec]:
         ParamSpec("command_timeout_s", 10.0, "lockstep: wall time to wait for a command before failing (longer than"
                   " the ~3 s a stalled DDS reader can hold the loop up)", "s",
                   0.01, 3600.0),
+        ParamSpec("delay_samples", None, "realtime: the loop's computation delay; a command acts from the sample "
+                  "after the one it answers (lockstep: the controller delays)", "samples", 0, 1,
+                  config_key="controller.delay_samples"),
+        ParamSpec("start_samples", 20, "realtime: consecutive on-time commands before levitation starts (the "
+                  "plant holds its start state until the loop keeps up)", "samples", 1, 1000000),
         ParamSpec("hold_samples", 10, "realtime: samples a stale command is held before zero current", "samples",
                   0, 1000000),
         ParamSpec("start_timeout_s", 30.0, "wall time to wait for controller and base motion to connect", "s",
@@ -96,13 +101,14 @@ class PlantNode(RigNode):
         self.model = build_structure(cfg)
         self.limit = p["current_limit"]
         self.rig = RigPlant(self.model, cfg, self.Ts, current_limit=self.limit)  # the core's one stepping code
+        self.rig.warm_up()  # the moving base's step interpolant, before the loop's first step needs it
         self.stepper = self.rig.lin
         self.channels = self.model.channels
         self.air_gap = cfg.bearings.air_gap
         # with backup bearings the rotor lands on them and the run goes on; without, it stops at the gap multiple
         self.max_y = np.inf if cfg.touchdown.nodes else p["max_displacement_ratio"] * self.air_gap
         self.sensor = SensorModel(p["noise_std"], p["quantization"], p["sensor_delay_samples"], p["noise_seed"])
-        self.policy = CommandPolicy(len(self.channels), p["hold_samples"])
+        self.policy = CommandPolicy(len(self.channels), p["hold_samples"], p["delay_samples"], p["start_samples"])
         self.x = self.initial_state(p["initial_displacement"])
         self.steps = 0
         self.report = DisplacementReport(self.channels, cfg, self.Ts)
@@ -387,7 +393,7 @@ class PlantNode(RigNode):
             out.update({Plant.late_commands_held.text: str(pol.held), Plant.zero_current.text: str(pol.zeroed),
                         Plant.command_losses.text: str(pol.losses), "command state": pol.state,
                         "missed deadlines": str(self.missed), "skipped ticks": str(self.skipped),
-                        "ticks before the first command": str(pol.waiting)})  # fmt: skip
+                        "ticks before levitation": str(pol.waiting)})  # fmt: skip
             out.update(self.period_error.summary("period error"))
             out["samples answered"] = str(self.sample_round_trip.count)
             out.update(self.sample_round_trip.summary("round trip"))
