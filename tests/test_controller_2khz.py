@@ -25,6 +25,7 @@ from helpers import run_rig
 
 REPO = Path(__file__).resolve().parents[1]
 RIG_2KHZ = REPO / "config" / "seed_rotor_2khz.yaml"
+RIG_2KHZ_LQG = REPO / "config" / "seed_rotor_2khz_lqg.yaml"  # tests/test_lqg.py
 RIG = REPO / "config" / "seed_rotor.yaml"
 sys.path.insert(0, str(REPO / "tools"))
 import controller_search  # noqa: E402  (tools/ is not a package)
@@ -71,8 +72,9 @@ def test_a_kick_settles_on_the_2khz_controller_and_grounds_the_default_pd():
     assert bad.contacts  # on the backup bearings within 0.2 s
 
 
-def test_amb_rig_runs_the_2khz_rig_in_lockstep(tmp_path, venv_bin):
-    code, summary, text = run_rig(tmp_path, venv_bin, ["--config", str(RIG_2KHZ), "--duration", "1"])
+@pytest.mark.parametrize("path", [RIG_2KHZ, RIG_2KHZ_LQG], ids=["pd", "lqg"])
+def test_amb_rig_runs_the_2khz_rig_in_lockstep(tmp_path, venv_bin, path):
+    code, summary, text = run_rig(tmp_path, venv_bin, ["--config", str(path), "--duration", "1"])
     assert code == 0 and summary["ok"], text
     assert summary["rate_hz"] == 2000 and summary["steps"] == 2000
     values = summary["nodes"]["controller"]["values"]

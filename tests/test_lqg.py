@@ -4,7 +4,8 @@ The design is checked against a second implementation (the Riccati equations sol
 observer recursion run sample by sample); the shipped file against a fresh design; the
 loop it closes by the digital loop's step map (amb_dynamics.preflight, the check amb-rig runs) over the speed
 range and the perturbed plants, with and without the one sample of delay it is designed for; and in the time
-domain by the rig's own stepping code with every nonlinear effect (a 50 um kick settles).
+domain by the rig's own stepping code with every nonlinear effect (a 50 um kick settles); a lockstep amb-rig run
+is in tests/test_controller_2khz.py.
 """
 
 from __future__ import annotations
@@ -23,7 +24,6 @@ from amb_dynamics.lqg import LqgWeights, lqg_controller
 from amb_dynamics.preflight import digital_at_rest
 from amb_dynamics.sensitivity import sampled_plant_state_space
 from amb_dynamics.structure import build_structure
-from helpers import run_rig
 
 REPO = Path(__file__).resolve().parents[1]
 LQG = REPO / "config" / "seed_rotor_2khz_lqg.yaml"
@@ -153,15 +153,6 @@ def test_a_kick_settles_on_the_lqg_controller_with_every_effect(rpm):
     assert env[0] > 40e-6 and env[2:].max() < 0.5 * env[0]
     assert np.abs(run.displacement).max() < 0.3 * cfg.bearings.air_gap
     assert np.abs(run.i).max() < cfg.controller.current_limit  # never saturated: nothing for the observer to miss
-
-
-def test_amb_rig_runs_the_lqg_rig_in_lockstep(tmp_path, venv_bin):
-    code, summary, text = run_rig(tmp_path, venv_bin, ["--config", str(LQG), "--duration", "1"])
-    assert code == 0 and summary["ok"], text
-    assert summary["rate_hz"] == 2000 and summary["steps"] == 2000
-    values = summary["nodes"]["controller"]["values"]
-    assert values["samples lost"] == "0" and values["saturated samples"] == "0"
-    assert max(p["air_gap_ratio"] for p in summary["peak_displacement"].values()) < 0.3
 
 
 def test_bad_weights_are_one_clear_error():
