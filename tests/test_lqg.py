@@ -2,7 +2,8 @@
 
 The design is checked against a second implementation (the Riccati equations solved by doubling and the textbook
 observer recursion run sample by sample); the shipped file against a fresh design; the
-loop it closes by the digital loop's step map (amb_dynamics.preflight, the check amb-rig runs) over the speed
+loop it closes by the digital loop's step map about the levitated operating point (amb_dynamics.preflight, the
+check amb-rig runs) over the speed
 range and the perturbed plants, with and without the one sample of delay it is designed for; and in the time
 domain by the rig's own stepping code with every nonlinear effect (a 50 um kick settles); a lockstep amb-rig run
 is in tests/test_controller_2khz.py.
@@ -108,15 +109,41 @@ def test_the_shipped_file_is_the_design_of_its_weights():
 
 @pytest.mark.parametrize("variant", VARIANTS, ids=lambda v: v[0] if v else "nominal")
 def test_the_lqg_loop_is_stable_over_the_speed_range_and_the_perturbed_plants(variant):
-    """The step map of the loop linearised at the bearing centre (amb-rig's preflight) up to 2750 rpm, and at the
-    levitated operating point (gravity, bias offsets: the point the rig runs at) up to 3000 rpm, every 250 rpm.
-    At 3000 rpm the centre's linearisation has a 114 Hz mode at 1.0013 per sample (docs/real-rig.md)."""
-    for rpm in np.arange(0.0, 2751.0, 250.0):
+    """The step map of the loop about the levitated operating point (amb-rig's preflight, gravity and bias offsets
+    on the nonlinear law: the point the rig runs at) from 0 to 3000 rpm every 250 rpm, and the design tool's own
+    check (controller_search.judge) on the same plants."""
+    for rpm in np.arange(0.0, 3001.0, 250.0):
         cfg = load_config(LQG, [*variant, f"spin_speed_rpm={rpm}"])
         d = digital_at_rest(build_structure(cfg), cfg)
         assert d["rate_hz"] == 2000.0 and d["delay_samples"] == 1 and d["stable"], (variant, rpm, d)
     radius, _ = controller_search.judge([], np.arange(0.0, 3001.0, 250.0), [variant], path=LQG)
     assert radius < 1.0 - 1e-6, (variant, radius)
+
+
+def test_the_preflight_linearises_the_bearing_where_the_rotor_rests():
+    """At 3000 rpm the preflight's spectral radius is the step map's about the operating point, built here from
+    the tangent of the bearing law (amb_dynamics.operating_point), and amb-rig accepts the run.  Linearised at the
+    bearing centre instead (the unloaded bias point, no gravity) the same loop has a 114 Hz mode at 1.0013 per
+    sample: the two linearisations differ, and the rig runs at the first."""
+    from amb_dynamics.operating_point import operating_point, tangent_gains
+    from amb_dynamics.preflight import rig_preflight
+    from amb_dynamics.rig_loop import start_gain
+    from amb_dynamics.sampled import SampledLoop
+
+    cfg = load_config(LQG, ["spin_speed_rpm=3000"])
+    model = build_structure(cfg)
+    Ts = 1.0 / cfg.controller.rate_hz
+    op = operating_point(model, cfg, start_gain(cfg, model.gains, Ts))
+    assert np.abs(op.i[[0, 2]]).min() > 1.0  # gravity loads the y axes: the tangent is not the centre's
+    rest = SampledLoop(model, cfg, Ts=Ts, forcing=False, bearing=tangent_gains(cfg, op))
+    mu = np.abs(np.linalg.eigvals(rest.step_map(np.zeros(3), np.zeros(3)))).max()
+    assert digital_at_rest(model, cfg)["spectral_radius_per_sample"] == pytest.approx(mu, rel=1e-12)
+    assert mu < 1.0 - 1e-6 and rig_preflight(cfg)[0]
+    centre = SampledLoop(model, cfg, Ts=Ts, forcing=False).step_map(np.zeros(3), np.zeros(3))
+    w = np.linalg.eigvals(centre)
+    k = int(np.argmax(np.abs(w)))
+    assert abs(w[k]) == pytest.approx(1.0013, abs=2e-4)
+    assert abs(np.angle(w[k])) / (2 * np.pi * Ts) == pytest.approx(114.0, abs=3.0)
 
 
 def test_the_design_needs_the_delay_it_was_made_for():

@@ -1,8 +1,11 @@
 """The digital loop's verdict before anything runs: is the sampled-data loop stable at rest at the config's rate?
 
 With the base at rest the loop is time-invariant: one step map F (``SampledLoop.step_map``) and its spectral
-radius rho per sample decide (rho < 1: stable).  Used by ``modes`` and ``campbell`` (per spin speed) and by
-``amb-rig run`` (refuses an unstable loop unless --force), which also gets a stable rate from a quick search.
+radius rho per sample decide (rho < 1: stable).  A nonlinear bearing law is linearised where the rotor rests, at
+the levitated operating point (gravity and bias offsets: :func:`amb_dynamics.rig_loop.levitated_bearing`), the
+point the rig starts from and the sensitivity model and the monitor's model value use.  Used by ``modes`` and
+``campbell`` (per spin speed) and by ``amb-rig run`` (refuses an unstable loop unless --force), which also gets a
+stable rate from a quick search.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import dataclasses
 import numpy as np
 
 from .config import RotorConfig
+from .rig_loop import levitated_bearing
 from .sampled import SampledLoop
 from .structure import StructuralModel, build_structure
 
@@ -23,9 +27,11 @@ MARGIN = 1e-12  # rho per sample must be below 1 - MARGIN (rounding only: slow m
 
 def digital_at_rest(model: StructuralModel, cfg: RotorConfig, rate_hz: float | None = None) -> dict:
     """Spectral radius per sample of the digital loop with the base at rest, at ``rate_hz`` (default: the config's)
-    and the config's delay and spin speed; the slowest-decaying discrete pole as an equivalent growth rate (1/s)."""
+    and the config's delay and spin speed, about the levitated operating point; the slowest-decaying discrete pole
+    as an equivalent growth rate (1/s)."""
     rate = cfg.controller.rate_hz if rate_hz is None else rate_hz
-    loop = SampledLoop(model, cfg, Ts=1.0 / rate, forcing=False)
+    Ts = 1.0 / rate
+    loop = SampledLoop(model, cfg, Ts=Ts, forcing=False, bearing=levitated_bearing(model, cfg, Ts))
     mu = np.linalg.eigvals(loop.step_map(np.zeros(3), np.zeros(3)))
     k = int(np.argmax(np.abs(mu)))
     rho = float(abs(mu[k]))
