@@ -126,3 +126,27 @@ def test_contact_dissipates_over_an_impact():
     assert v < 0 and abs(v) < 0.05 and work < 0
     assert 0.5 * m * v**2 == pytest.approx(0.5 * m * 0.05**2 + work, rel=1e-3)  # the energy books balance
     assert k > 0
+
+
+def test_several_nodes_at_once_match_the_vector_formula():
+    """contact_forces on many nodes at once (in contact or not, approaching or leaving, either spin) equals the
+    module docstring's law written here with numpy over all nodes: F = -F_n n + F_t t, F_n = max(k delta + d v.n,
+    0), F_t = -mu F_n tanh((v.t + Phi R) / V_SLIP), zero where delta <= 0."""
+    rng = np.random.default_rng(7)
+    angle = rng.uniform(0.0, 2 * np.pi, 40)
+    rho = rng.uniform(0.95e-3, 1.05e-3, 40)
+    r = np.column_stack([rho * np.cos(angle), rho * np.sin(angle)])
+    v = rng.normal(0.0, 0.3, (40, 2))
+    for spin in (-150.0, 0.0, 300.0):
+        got = contact_forces(r, v, spin, 0.015, **CONTACT)
+        n = r / rho[:, None]
+        t = np.column_stack([-n[:, 1], n[:, 0]])
+        delta = rho - CONTACT["clearance"]
+        fn = np.maximum(CONTACT["stiffness"] * delta + CONTACT["damping"] * np.sum(v * n, axis=1), 0.0)
+        fn[delta <= 0.0] = 0.0
+        ft = -CONTACT["friction"] * fn * np.tanh((np.sum(v * t, axis=1) + spin * 0.015) / V_SLIP)
+        want = -fn[:, None] * n + ft[:, None] * t
+        assert 5 < np.count_nonzero(fn) < 35  # both cases are exercised
+        np.testing.assert_allclose(got.force, want, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(got.penetration, delta, rtol=1e-12, atol=1e-18)
+        np.testing.assert_allclose(got.normal, fn, rtol=1e-12, atol=1e-9)

@@ -71,6 +71,7 @@ class RigForces:
         self.T_amb = np.ascontiguousarray(self.T[self.amb_idx])
         self.td_idx = [self.nodes.index(nd) for nd in self.td_nodes]
         self.td_rows = np.array([2 * j + a for j in self.td_idx for a in (0, 1)], dtype=int)
+        self.T_td = np.ascontiguousarray(self.T[self.td_rows])
         self.law = BearingLaw.from_config(b) if self.nonlinear else None
         self.clearance, self.k_c = td.clearance, td.stiffness
         self.c_c, self.mu, self.radius = td.damping, td.friction, cfg.shaft.diameter / 2
@@ -116,17 +117,14 @@ class RigForces:
         ``near`` False (no touchdown node within NEAR x clearance, see ``near()``): no contact is evaluated."""
         n = self.n
         f = np.zeros(2 * len(self.nodes))
-        r = self.T @ x[:n]
         if self.nonlinear:
             f[self.amb_idx] += self.amb_correction(x, i)
         if self.touchdown and near:  # touchdown.contact_forces at every backup-bearing node at once
-            v = self.T @ x[n : 2 * n]
-            rows = self.td_rows
             c = contact_forces(
-                r[rows].reshape(-1, 2), v[rows].reshape(-1, 2), spin, self.radius, self.clearance, self.k_c,
-                self.c_c, self.mu,
+                (self.T_td @ x[:n]).reshape(-1, 2), (self.T_td @ x[n : 2 * n]).reshape(-1, 2), spin, self.radius,
+                self.clearance, self.k_c, self.c_c, self.mu,
             )  # fmt: skip
-            f[rows] += c.force.ravel()
+            f[self.td_rows] += c.force.ravel()
             if log is not None:
                 for node, d, fy, fz in zip(self.td_nodes, c.penetration, c.force[:, 0], c.force[:, 1], strict=True):
                     log.record(node, t, float(d), math.hypot(fy, fz))

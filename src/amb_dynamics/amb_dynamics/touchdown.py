@@ -15,6 +15,7 @@ prescribed profile).  Units: m, m/s, rad/s, N.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,18 +48,21 @@ def contact_forces(
     """
     r = np.atleast_2d(np.asarray(r, dtype=float))
     v = np.atleast_2d(np.asarray(v, dtype=float))
-    rho = np.hypot(r[:, 0], r[:, 1])
-    delta = rho - clearance
-    force = np.zeros_like(r)
-    normal = np.zeros(len(r))
-    hit = delta > 0.0
-    if hit.any():
-        n = r[hit] / rho[hit, None]
-        t = np.stack([-n[:, 1], n[:, 0]], axis=1)
-        vn = np.sum(v[hit] * n, axis=1)
-        fn = np.maximum(stiffness * delta[hit] + damping * vn, 0.0)
-        vs = np.sum(v[hit] * t, axis=1) + spin * radius
-        ft = -friction * fn * np.tanh(vs / V_SLIP)
-        force[hit] = -fn[:, None] * n + ft[:, None] * t
-        normal[hit] = fn
-    return ContactForces(force, delta, normal)
+    # per node in floats: the plant evaluates a few nodes twice per sub-step, where numpy's per-call overhead on
+    # arrays of two rows was most of the cost of a step in contact
+    slide = spin * radius
+    force, delta, normal = [], [], []
+    for (y, z), (vy, vz) in zip(r.tolist(), v.tolist(), strict=True):
+        rho = math.hypot(y, z)
+        d = rho - clearance
+        delta.append(d)
+        if d <= 0.0:
+            force.append((0.0, 0.0))
+            normal.append(0.0)
+            continue
+        ny, nz = y / rho, z / rho  # n; t = (-nz, ny)
+        fn = max(stiffness * d + damping * (vy * ny + vz * nz), 0.0)
+        ft = -friction * fn * math.tanh((-vy * nz + vz * ny + slide) / V_SLIP)
+        force.append((-fn * ny - ft * nz, -fn * nz + ft * ny))
+        normal.append(fn)
+    return ContactForces(np.array(force).reshape(-1, 2), np.array(delta), np.array(normal))
