@@ -37,6 +37,12 @@ def test_measured_sensitivity_agrees_with_digital_loop_model(repo, venv_bin, tmp
     good = coh >= 0.9
     assert good.sum() >= 10 and f.min() >= 5 and f.max() <= 50
     assert np.max(np.abs(meas[good] - model[good]) / model[good]) < 0.05
+    # the difference in units of each bin's random error, sqrt(1 - coh) / (sqrt(coh) sqrt(2 segments)), from the
+    # printed coherence and segment count: the reported value, and within what noise gives
+    err = np.sqrt(1 - coh) / (np.sqrt(coh) * np.sqrt(2 * r["segments"]))
+    np.testing.assert_allclose(np.array(r["random_error"], dtype=float), err, rtol=1e-9)
+    z = (np.abs(meas - model) / model / err)[good].max()
+    assert r["max_difference_in_random_errors"] == pytest.approx(z, rel=1e-6) and z < 4.0
     assert r["segments"] >= 4 and r["resolution_hz"] == pytest.approx(1.0)
     assert (tmp_path / "S.png").read_bytes()[:4] == b"\x89PNG"
     # the same estimate from the recorded bag

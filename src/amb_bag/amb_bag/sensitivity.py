@@ -91,6 +91,8 @@ def sensitivity_report(m, notes, axis: str, limits, model_abs=None, min_coherenc
         out["model_abs"] = np.asarray(model_abs).tolist()
         out["coherent_bins"] = int(good.sum())
         out["max_rel_error_where_coherent"] = float(rel[good].max()) if good.any() else None
+        # the same difference in units of the estimate's own random error: about 3 or less is measurement noise
+        out["max_difference_in_random_errors"] = float((rel / m.random_error)[good].max()) if good.any() else None
     return out
 
 
@@ -182,6 +184,7 @@ def format_report(r: dict) -> str:
     if r.get("max_rel_error_where_coherent") is not None:
         lines.append(
             f"model of the digital loop: max |S| difference {100 * r['max_rel_error_where_coherent']:.2f} % over "
-            f"{r['coherent_bins']} bins with coherence >= {r['min_coherence']:g}"
+            f"{r['coherent_bins']} bins with coherence >= {r['min_coherence']:g} (at most "
+            f"{r['max_difference_in_random_errors']:.2g} x the estimate's random error)"
         )
     return "\n".join(lines)

@@ -210,5 +210,6 @@ def _measured(bag_path: str, cfg, axis: str, png: Path, resolution_hz: float, se
     report = sensitivity_report(m, notes, axis, limits, model_abs_at(cfg, axis, m.frequency_hz))
     add_fitted_model(report, m, cfg, axis)
     measured_figure(report, limits, f"{axis}: measured and model", png)
-    keys = ("axis", "peak", "resolution_hz", "coherent_bins", "max_rel_error_where_coherent", "notes", "fitted_model")
+    keys = ("axis", "peak", "resolution_hz", "coherent_bins", "max_rel_error_where_coherent",
+            "max_difference_in_random_errors", "notes", "fitted_model")  # fmt: skip
     return {k: report[k] for k in keys if k in report}

@@ -126,7 +126,13 @@ def _measured(doc: dict) -> str:
         ("peak |S|", "-" if p["peak_abs"] is None else f"{p['peak_abs']:.4g} at {p['peak_hz']:.4g} Hz"),
         ("zone", p.get("zone") or "- (peak not resolved)"),
         ("frequency resolution", f"{m['resolution_hz']:g} Hz"),
-        ("model agreement", "-" if err is None else f"{100 * err:.2f} % over {m['coherent_bins']} coherent bins"),
+        (
+            "model agreement",
+            "-"
+            if err is None
+            else f"{100 * err:.2f} % over {m['coherent_bins']} coherent bins "
+            f"(at most {m['max_difference_in_random_errors']:.2g} x the estimate's random error)",
+        ),
     ]
     fit = m.get("fitted_model")
     if fit:

@@ -7,7 +7,11 @@ spectra (scipy.signal.csd / welch), with the magnitude-squared coherence
     gamma^2 = |G_E,ym|^2 / (G_E,E G_ym,ym)
 
 saying where the estimate is trustworthy.  Noise that is not caused by E (sensor noise, unbalance, base motion)
-leaves H1 unbiased and lowers gamma^2.  A single-segment FFT ratio Y/E would have gamma^2 = 1 by construction and
+leaves H1 unbiased and lowers gamma^2.  Its random error: the normalised standard deviation of |H1| from n_d
+averages is sqrt(1 - gamma^2) / (|gamma| sqrt(2 n_d)) (Bendat and Piersol, Random Data, the H1 magnitude
+estimate), computed per bin with the estimated coherence (``random_error``).  It is the spread of a periodic
+injection analysed one period per segment; leakage (a non-periodic injection in Hann segments) adds a bias it
+does not include.  A single-segment FFT ratio Y/E would have gamma^2 = 1 by construction and
 is refused: at least ``MIN_SEGMENTS`` averages are required.  The frequency resolution is fs/nperseg; a peak whose
 half-power band spans fewer than ``RESOLVED_BINS`` bins (a lightly damped mode) is reported as unresolved.
 """
@@ -43,6 +47,14 @@ class MeasuredSensitivity:
     @property
     def phase_deg(self) -> np.ndarray:
         return np.degrees(np.angle(self.S))
+
+    @property
+    def random_error(self) -> np.ndarray:
+        """Normalised random error of |S| per bin, sqrt(1 - gamma^2) / (|gamma| sqrt(2 segments)); inf where the
+        coherence is 0."""
+        g2 = self.coherence
+        with np.errstate(divide="ignore"):
+            return np.sqrt(1.0 - g2) / (np.sqrt(g2) * np.sqrt(2.0 * self.segments))
 
     def peak(self, min_coherence: float = 0.9) -> dict:
         """Largest |S| among the bins with coherence >= min_coherence, with a resolved/unresolved verdict."""
@@ -87,6 +99,7 @@ class MeasuredSensitivity:
             "abs": self.abs.tolist(),
             "phase_deg": self.phase_deg.tolist(),
             "coherence": self.coherence.tolist(),
+            "random_error": [float(v) if np.isfinite(v) else None for v in self.random_error],
             "resolution_hz": self.resolution_hz,
             "segments": self.segments,
         }
