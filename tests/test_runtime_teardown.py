@@ -58,3 +58,36 @@ def test_the_supervisor_waits_longer_than_a_node_may_take_to_exit():
     final_s = inspect.signature(Diagnostics.publish_final).parameters["timeout_s"].default
     assert NODE_EXIT_BUDGET_S == ACK_TIMEOUT_S + final_s
     assert SIGINT_WAIT_S >= NODE_EXIT_BUDGET_S + 3.0
+
+
+EXITING = """
+import atexit, sys, time
+import amb_ros.runtime as rt
+atexit.register(time.sleep, 60)  # stands for Fast DDS's factory destructor that hung at exit()
+sys.stdout.write("buffered, no newline")
+sys.stderr.write("last words")
+rt.exit_process(3)
+"""
+
+
+def test_exit_process_flushes_and_skips_the_exit_handlers():
+    """A node's process ends with its code right after teardown: what it printed is flushed, and an exit handler
+    that would hang (as Fast DDS's factory destructor did in a plant whose parent was killed) does not run."""
+    t0 = time.monotonic()
+    res = subprocess.run([sys.executable, "-c", EXITING], capture_output=True, text=True, timeout=30)
+    assert time.monotonic() - t0 < 20  # not the 60 s of the exit handler
+    assert res.returncode == 3 and res.stdout == "buffered, no newline" and res.stderr == "last words"
+
+
+def test_every_node_main_ends_through_exit_process():
+    """The four node executables hand run_node's code to exit_process (not sys.exit, which runs the handlers)."""
+    import inspect
+
+    from amb_controller import node as controller
+    from amb_plant import node as plant
+    from base_motion import node as base_motion
+    from stability_monitor import node as monitor
+
+    for module in (plant, controller, base_motion, monitor):
+        src = inspect.getsource(module.main)
+        assert "exit_process(run_node(" in src and "sys.exit" not in src, module.__name__

@@ -18,7 +18,6 @@ touchdown bearings rather than act on stale data), resets its PID and reports ER
 
 from __future__ import annotations
 
-import sys
 import time
 from dataclasses import replace
 
@@ -38,7 +37,7 @@ from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode, run_token, run_token_spec
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos, latched_qos
-from amb_ros.runtime import run_node
+from amb_ros.runtime import exit_process, run_node
 
 from .excitation import KINDS, Excitation
 from .injection_hook import InjectionHook, injection_specs
@@ -345,4 +344,4 @@ class ControllerNode(RigNode):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run_node("amb_controller", ControllerNode, args))
+    exit_process(run_node("amb_controller", ControllerNode, args))

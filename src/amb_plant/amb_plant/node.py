@@ -47,7 +47,7 @@ from amb_ros.node_base import RigNode, run_token, run_token_spec
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos, latched_qos
 from amb_ros.run_config import config_json
-from amb_ros.runtime import RunFailed, run_node
+from amb_ros.runtime import RunFailed, exit_process, run_node
 from amb_ros.state_block import StateBlockDecoder, StateBlockWriter
 
 from .loops import run_lockstep, run_realtime, wait_connected
@@ -401,4 +401,4 @@ class PlantNode(RigNode):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run_node("amb_plant", PlantNode, args))
+    exit_process(run_node("amb_plant", PlantNode, args))

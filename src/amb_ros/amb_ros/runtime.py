@@ -3,16 +3,19 @@
 ``run_node(name, factory)`` is the whole ``main()`` of a node: it enforces localhost DDS before rclpy starts,
 turns SIGINT/SIGTERM into a stop flag that the node's loop polls (so the node publishes its final diagnostics and
 shuts down cleanly instead of dying mid-write), prints user errors (:class:`AmbError`, a refused DDS environment,
-bad ROS arguments) as one line on stderr, and returns the exit code.
+bad ROS arguments) as one line on stderr, and returns the exit code, which the node's ``main()`` hands to
+:func:`exit_process`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import os
 import signal
 import sys
 import threading
+from typing import NoReturn
 
 from amb_dynamics.errors import AmbError
 
@@ -105,4 +108,17 @@ def teardown(name: str, node, code: int, rclpy) -> None:
 def _exit_now(name: str, code: int) -> None:
     print(f"{name}: DDS shutdown did not finish within {TEARDOWN_TIMEOUT_S:g} s; exiting", file=sys.stderr,
           flush=True)  # fmt: skip
+    os._exit(code)
+
+
+def exit_process(code: int) -> NoReturn:
+    """End a node's process with ``code`` after :func:`run_node`: flush stdout and stderr and leave without the
+    interpreter's and the C++ libraries' exit handlers.  Fast DDS's DomainParticipantFactory destructor, run by
+    exit(), disables every participant still alive; a plant whose parent had been killed (SIGKILL, its children
+    told by PR_SET_PDEATHSIG) hung there with a core busy for minutes after its own teardown, holding the domain's
+    run lock, so that every later amb-rig run on that domain waited for it and failed.  Everything a node writes
+    is closed or acknowledged before run_node returns."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
     os._exit(code)

@@ -26,7 +26,6 @@ recorded (CSV file, see amb_dynamics.recorded).
 
 from __future__ import annotations
 
-import sys
 import time
 
 import numpy as np
@@ -44,7 +43,7 @@ from amb_ros.loop import Ticker, Waiter
 from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos
-from amb_ros.runtime import run_node
+from amb_ros.runtime import exit_process, run_node
 from amb_ros.state_block import StateBlockWriter
 
 from .samples import SampleSource
@@ -227,4 +226,4 @@ class BaseMotionNode(RigNode):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run_node("base_motion", BaseMotionNode, args))
+    exit_process(run_node("base_motion", BaseMotionNode, args))

@@ -30,7 +30,6 @@ The numbers come from ``amb_dynamics.estimator`` through :mod:`stability_monitor
 
 from __future__ import annotations
 
-import sys
 import time
 
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -48,7 +47,7 @@ from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
 from amb_ros.qos import data_qos, latched_qos, reliable_qos
-from amb_ros.runtime import run_node
+from amb_ros.runtime import exit_process, run_node
 from amb_ros.scheduling import PRIORITIES, consumer_priority
 
 from .gaps import SampleGaps
@@ -338,4 +337,4 @@ class MonitorNode(RigNode):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run_node("stability_monitor", MonitorNode, args))
+    exit_process(run_node("stability_monitor", MonitorNode, args))
