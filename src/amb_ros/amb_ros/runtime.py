@@ -25,6 +25,7 @@ EXIT_OK = 0
 EXIT_USAGE = 2  # bad parameter, config or environment
 EXIT_FAILED = 3  # the run could not go on (peer gone, state diverged)
 TEARDOWN_TIMEOUT_S = 5.0  # < amb-rig's SIGINT wait (8 s)
+EXIT_TIMEOUT_S = 5  # s (whole seconds: signal.alarm) for the exit handlers after the teardown
 
 
 class StopFlag:
@@ -112,13 +113,17 @@ def _exit_now(name: str, code: int) -> None:
 
 
 def exit_process(code: int) -> NoReturn:
-    """End a node's process with ``code`` after :func:`run_node`: flush stdout and stderr and leave without the
-    interpreter's and the C++ libraries' exit handlers.  Fast DDS's DomainParticipantFactory destructor, run by
-    exit(), disables every participant still alive; a plant whose parent had been killed (SIGKILL, its children
-    told by PR_SET_PDEATHSIG) hung there with a core busy for minutes after its own teardown, holding the domain's
-    run lock, so that every later amb-rig run on that domain waited for it and failed.  Everything a node writes
-    is closed or acknowledged before run_node returns."""
+    """End a node's process with ``code`` after :func:`run_node`, within EXIT_TIMEOUT_S.
+
+    The interpreter's and the C++ libraries' exit handlers still run: Fast DDS deletes the participant there and
+    tells the peers that its endpoints are gone (a writer waiting for this reader's acknowledgements stops
+    waiting; without it the peers keep them for the lease duration).  But that destructor once hung with a core
+    busy for minutes, in a plant whose amb-rig had been SIGKILLed, holding the domain's run lock so that every
+    later run on that domain waited for it and failed.  A Python thread cannot end a process that is past
+    finalisation, so a kernel alarm does: SIGALRM (default action: terminate) after EXIT_TIMEOUT_S."""
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()
-    os._exit(code)
+    signal.signal(signal.SIGALRM, signal.SIG_DFL)
+    signal.alarm(EXIT_TIMEOUT_S)
+    sys.exit(code)
