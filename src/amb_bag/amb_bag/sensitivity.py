@@ -91,7 +91,7 @@ def sensitivity_report(m, notes, axis: str, limits, model_abs=None, min_coherenc
         out["model_abs"] = np.asarray(model_abs).tolist()
         out["coherent_bins"] = int(good.sum())
         out["max_rel_error_where_coherent"] = float(rel[good].max()) if good.any() else None
-        # the same difference in units of the estimate's own random error: about 3 or less is measurement noise
+        # the same difference in units of the estimate's own random error: below about 3.5 is measurement noise
         out["max_difference_in_random_errors"] = float((rel / m.random_error)[good].max()) if good.any() else None
     return out
 
