@@ -103,3 +103,23 @@ def test_random_error_is_the_scatter_of_repeated_measurements(segments):
     # the estimate's own number, from its estimated coherence (biased high for few segments: a smaller error)
     mean_reported = np.mean(np.array(reported)[:, sel], axis=0)
     np.testing.assert_allclose(mean_reported, predicted[sel], rtol=0.2)
+
+
+def test_a_model_that_is_not_the_rig_is_named_and_noise_is_not():
+    """sensitivity_report beside a model: a measurement of the true S (noise only) stays within the noise bound and
+    gets no note; against a model 15 % off over the band (a rig that is not the config) the largest difference is
+    many random errors and one note names it."""
+    from amb_bag.sensitivity import NOISE_BOUND, sensitivity_report
+
+    rng = np.random.default_rng(3)
+    b, a = resonant_S()
+    e = rng.standard_normal(60000)
+    ym = signal.lfilter(b, a, e) + 0.2 * rng.standard_normal(e.size)
+    m = estimate_sensitivity(e, ym, FS, nperseg=1000, band_hz=(5, 200))
+    _, S_true = signal.freqz(b, a, worN=m.frequency_hz, fs=FS)
+    same = sensitivity_report(m, [], "amb1_y", (3.0, 4.0, 5.0), np.abs(S_true))
+    assert same["coherent_bins"] >= 50 and same["max_difference_in_random_errors"] < NOISE_BOUND
+    assert not any("random errors" in n for n in same["notes"])
+    off = sensitivity_report(m, [], "amb1_y", (3.0, 4.0, 5.0), 1.15 * np.abs(S_true))
+    assert off["max_difference_in_random_errors"] > 3 * NOISE_BOUND
+    assert sum("random errors" in n and "is the rig the config?" in n for n in off["notes"]) == 1

@@ -20,6 +20,7 @@ from .errors import BagError
 from .reader import Bag
 
 INJECTION = "/amb/injection"
+NOISE_BOUND = 4.0  # differences in random errors that noise gives over about a hundred coherent bins
 
 
 def read_injection(path, axis: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -92,7 +93,14 @@ def sensitivity_report(m, notes, axis: str, limits, model_abs=None, min_coherenc
         out["coherent_bins"] = int(good.sum())
         out["max_rel_error_where_coherent"] = float(rel[good].max()) if good.any() else None
         # the same difference in units of the estimate's own random error: below about 3.5 is measurement noise
-        out["max_difference_in_random_errors"] = float((rel / m.random_error)[good].max()) if good.any() else None
+        z = rel / m.random_error
+        out["max_difference_in_random_errors"] = float(z[good].max()) if good.any() else None
+        if good.any() and z[good].max() > NOISE_BOUND:
+            k = int(np.flatnonzero(good)[np.argmax(z[good])])
+            out["notes"].append(
+                f"measured and model differ by {z[k]:.1f} random errors ({100 * rel[k]:.1f} %) at "
+                f"{m.frequency_hz[k]:.4g} Hz: more than noise gives; is the rig the config?"
+            )
     return out
 
 
