@@ -70,7 +70,10 @@ def bare_reader() -> None:
         "/base/angular_acceleration": Vector3Stamped,
         "/amb_plant/state": JointTrajectory,
     }
-    rclpy.init()
+    from amb_ros.fastdds import rig_transports
+
+    with rig_transports():  # as the nodes start DDS (like with like)
+        rclpy.init()
     node = rclpy.create_node("bench_bare_reader")
     subs = [node.create_subscription(types.get(t, JointState), t, lambda _: None, lockstep_qos(), raw=True)
             for t in RIG_TOPICS]  # fmt: skip

@@ -9,12 +9,15 @@ of 2,000 samples at ~2 kHz wakes about a third as often with the profile as with
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from amb_ros.env import child_env, ensure_localhost_dds
-from amb_ros.fastdds import LOCALHOST_PROFILE_FILE, PROFILE_FILE, PROFILE_VARS, SWITCH
+from amb_ros.fastdds import LOCALHOST_PROFILE_FILE, PROFILE_FILE, PROFILE_VARS, SWITCH, rig_transports
 
 SAMPLES = 2000
 
@@ -93,6 +96,34 @@ def test_every_process_gets_the_rig_profile_unless_switched_off_or_the_user_has_
     for var in PROFILE_VARS:
         env = ensure_localhost_dds({var: str(own)})
         assert env[var] == str(own) and {v for v in PROFILE_VARS if v in env} == {var}
+
+
+@pytest.mark.parametrize(
+    "change, hands_over",
+    [
+        ({}, True),
+        ({"RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}, True),
+        ({"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp"}, False),  # the profile means nothing to another RMW
+        ({"ROS_STATIC_PEERS": "10.213.77.2"}, False),  # unicast peers: rmw_fastrtps's own handling
+        ({"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}, False),
+        ({"FASTRTPS_DEFAULT_PROFILES_FILE": "/tmp/mine.xml"}, False),  # a profile of the user's own
+        ({"FASTDDS_DEFAULT_PROFILES_FILE": "/tmp/mine.xml"}, False),
+        ({SWITCH: "0"}, False),
+    ],
+)
+def test_rmw_leaves_the_transports_to_the_localhost_profile_only_while_rclpy_starts(monkeypatch, change, hands_over):
+    base = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "FASTRTPS_DEFAULT_PROFILES_FILE": str(LOCALHOST_PROFILE_FILE)}
+    for var in ("RMW_IMPLEMENTATION", "ROS_STATIC_PEERS", *PROFILE_VARS):
+        monkeypatch.delenv(var, raising=False)
+    env = ensure_localhost_dds({**base, **change})
+    for var, value in env.items():
+        monkeypatch.setenv(var, value)
+    before = dict(os.environ)
+    with rig_transports() as did:
+        during = os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+    assert did is hands_over
+    assert during == ("SYSTEM_DEFAULT" if hands_over else before["ROS_AUTOMATIC_DISCOVERY_RANGE"])
+    assert dict(os.environ) == before  # the process's environment (and its children's) as it was
 
 
 def test_the_two_profiles_share_their_writer_settings():

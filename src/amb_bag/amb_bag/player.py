@@ -56,6 +56,7 @@ def play(opts: PlayOptions) -> int:
         raise BagError(f"{opts.bag} holds no messages")
 
     from amb_ros.env import ensure_localhost_dds
+    from amb_ros.fastdds import rig_transports
 
     ensure_localhost_dds()
     import rclpy
@@ -63,7 +64,8 @@ def play(opts: PlayOptions) -> int:
     from rclpy.qos import ReliabilityPolicy
     from rclpy.signals import SignalHandlerOptions
 
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    with rig_transports():
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("amb_bag_player", enable_rosout=False, start_parameter_services=False)
     stop = {"now": False}
 

@@ -8,6 +8,13 @@ Two files: ``fastdds_profile_localhost.xml`` for localhost-only discovery (the w
 transports bound to loopback only: shared memory and UDPv4 on 127.0.0.1), ``fastdds_profile.xml`` for a wider
 discovery the user asked for (the writer settings alone: Fast DDS's own transports on every interface).
 
+With localhost discovery, rmw_fastrtps would add transports of its own for LOCALHOST (a UDPv4 transport that no
+XML restricts, with send sockets on 0.0.0.0 and on each interface address).  The localhost file therefore
+configures the whole participant (loopback transports, unicast discovery to 127.0.0.1, no multicast), and
+:func:`rig_transports` tells rmw_fastrtps, for the duration of ``rclpy.init`` only, to leave the transports to it
+(range SYSTEM_DEFAULT, which makes rmw_fastrtps add nothing).  It does so only when that file is the profile in
+force and the RMW is Fast DDS; otherwise rmw_fastrtps's own LOCALHOST handling stays.
+
 On by default; ``AMB_RIG_FASTDDS_PROFILE=0`` turns it off.  With it, short lockstep runs got fast enough to end
 before amb-rig's collector had discovered base_motion and the controller, whose reports were then lost; every
 final report now waits for the collector (``min_diagnostics_readers``), and a full CI passed with the profile on.
@@ -15,13 +22,18 @@ final report now waits for the collector (``min_diagnostics_readers``), and a fu
 
 from __future__ import annotations
 
+import os
+from contextlib import contextmanager
 from pathlib import Path
+
+from .discovery import LOCALHOST, PEERS_VAR, RANGE_VAR, SYSTEM_DEFAULT
 
 PROFILE_FILE = Path(__file__).with_name("fastdds_profile.xml")
 LOCALHOST_PROFILE_FILE = Path(__file__).with_name("fastdds_profile_localhost.xml")
 PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 SWITCH = "AMB_RIG_FASTDDS_PROFILE"  # "0": Fast DDS's own defaults
 _OURS = {str(PROFILE_FILE), str(LOCALHOST_PROFILE_FILE)}
+FAST_DDS_RMWS = ("", "rmw_fastrtps_cpp", "rmw_fastrtps_dynamic_cpp")  # "": the default RMW of Jazzy
 
 
 def use_rig_profile(env: dict, localhost_only: bool = True) -> dict:
@@ -36,3 +48,30 @@ def use_rig_profile(env: dict, localhost_only: bool = True) -> dict:
     if env.get(SWITCH) != "0":
         env[PROFILE_VARS[0]] = str(LOCALHOST_PROFILE_FILE if localhost_only else PROFILE_FILE)
     return env
+
+
+def profile_confines_localhost(env: dict) -> bool:
+    """True when ``env`` gives localhost discovery through the rig's localhost profile on Fast DDS."""
+    return (
+        env.get(RANGE_VAR) == LOCALHOST
+        and not env.get(PEERS_VAR)
+        and env.get(PROFILE_VARS[0]) == str(LOCALHOST_PROFILE_FILE)
+        and not env.get(PROFILE_VARS[1])
+        and env.get("RMW_IMPLEMENTATION", "") in FAST_DDS_RMWS
+        and LOCALHOST_PROFILE_FILE.is_file()
+    )
+
+
+@contextmanager
+def rig_transports():
+    """Wrap ``rclpy.init``: where the localhost profile is in force, rmw_fastrtps gets range SYSTEM_DEFAULT
+    while rcl reads it (``rclpy.init`` copies it into the context), so that the profile alone sets the
+    transports; this process's environment says LOCALHOST again right after.  Yields whether it did."""
+    if not profile_confines_localhost(os.environ):
+        yield False
+        return
+    os.environ[RANGE_VAR] = SYSTEM_DEFAULT
+    try:
+        yield True
+    finally:
+        os.environ[RANGE_VAR] = LOCALHOST
