@@ -34,9 +34,19 @@ def test_modes_json(venv_bin, tmp_path):
             assert m["frequency_rad_s"] == pytest.approx(lam.imag, rel=1e-12)
             assert m["damping_ratio"] == pytest.approx(-lam.real / abs(lam), rel=1e-12)
             assert m["whirl"] in ("forward", "backward")
-    # gyroscopic stiffening: the lowest forward mode rises with spin, the lowest backward mode falls.  The full
-    # FE model's overdamped AMB roots (-1207.6 1/s, double at rest) become a pair with zeta ~ 1 and a frequency
-    # below 2 rad/s once the rotor spins: not a vibration mode, left out here.
+        assert all(m["damping_ratio"] < 0.999 for m in s["modes"])
+    # the full FE model's overdamped AMB roots (-1207.6 and -4581.7 1/s, each double at rest: one per lateral
+    # direction) become pairs -a +- i b with b << a once the rotor spins (gyroscopic coupling of the two
+    # directions): listed apart, their real parts the roots at rest, every eigenvalue accounted for
+    rest = np.sort(speeds[0]["real_roots_1_s"])
+    assert rest.size > 0 and not speeds[0]["overdamped_pairs_1_s"]
+    for s in speeds[1:]:
+        pairs = np.array(s["overdamped_pairs_1_s"])
+        both = np.sort(np.concatenate([pairs[:, 0], pairs[:, 0], s["real_roots_1_s"]]))
+        np.testing.assert_allclose(both, rest, rtol=1e-4)
+        assert np.all((pairs[:, 1] > 0) & (pairs[:, 1] < 0.045 * -pairs[:, 0]))
+        assert len(s["modes"]) == len(speeds[0]["modes"])  # no mode left, none added
+    # gyroscopic stiffening: the lowest forward mode rises with spin, the lowest backward mode falls
     under = [[m for m in s["modes"] if m["damping_ratio"] < 0.5] for s in speeds]
     fwd = [min(m["frequency_rad_s"] for m in ms if m["whirl"] == "forward") for ms in under]
     bwd = [min(m["frequency_rad_s"] for m in ms if m["whirl"] == "backward") for ms in under]

@@ -46,8 +46,9 @@ def test_modes_of_paper_config_are_the_full_fe_model(capsys, speed):
     data = cli_json(capsys, "modes", "--config", PAPER, "--speed-rpm", str(speed), "--json")["speeds"][0]
     ref = pencil_eigenvalues(speed)
     got = [complex(*m["eigenvalue"]) for m in data["modes"]]
-    assert 2 * len(got) + len(data["real_roots_1_s"]) == ref.size  # every root accounted for, none merged
-    for z in got:
+    pairs = [complex(*z) for z in data["overdamped_pairs_1_s"]]
+    assert 2 * len(got) + 2 * len(pairs) + len(data["real_roots_1_s"]) == ref.size  # every root, none merged
+    for z in got + pairs:
         assert np.min(np.abs(ref - z)) <= 1e-6 * abs(z), z
     for r in data["real_roots_1_s"]:
         assert np.min(np.abs(ref - r)) <= 1e-6 * abs(r), r

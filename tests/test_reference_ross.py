@@ -45,7 +45,11 @@ def test_modes_match_ross(ross_eigenvalues, capsys, speed):
     n_fe = build_structure(load_config(paper_config_path(), ["modal_cutoff=null"])).n
     ref = ross[speed]
     upper = ref[ref.imag > 0]
-    assert 2 * len(res["modes"]) + len(res["real_roots_1_s"]) == 2 * n_fe  # every eigenvalue is accounted for
+    pairs = res["overdamped_pairs_1_s"]
+    assert 2 * len(res["modes"]) + 2 * len(pairs) + len(res["real_roots_1_s"]) == 2 * n_fe  # every eigenvalue
+    for re, im in pairs:  # the overdamped roots that spinning made into pairs
+        lam = complex(re, im)
+        assert np.min(np.abs(upper - lam)) <= REL_TOL * abs(lam) and im < 0.045 * -re, lam
     for mode in res["modes"]:
         lam = complex(*mode["eigenvalue"])
         j = np.argmin(np.abs(upper - lam))

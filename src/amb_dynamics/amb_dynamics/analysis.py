@@ -16,7 +16,7 @@ from .config import RotorConfig, load_config
 from .digital_floquet import estimate_point
 from .errors import InputError
 from .floquet import aperiodic_exponents, floquet, hybrid_period, sampled_floquet
-from .modes import campbell_data, modes_at_speed
+from .modes import OVERDAMPED_ZETA, campbell_data, modes_at_speed
 from .motion import BaseMotion, Harmonic
 from .newmark import disk_initial_state, fit_growth_rate, newmark
 from .preflight import digital_over_speeds
@@ -98,7 +98,11 @@ def run_modes(args):
                 f"         {m.frequency_rad_s:12.4f} {m.frequency_rad_s / 2 / np.pi:11.4f} "
                 f"{m.damping_ratio:9.5f}   {m.whirl:8s}  {lam.real:+.5g}{lam.imag:+.5g}j"
             )
-        lines.append("         overdamped real roots (1/s): " + ", ".join(f"{x:.5g}" for x in r.real_roots))
+        if r.real_roots:
+            lines.append("         overdamped real roots (1/s): " + ", ".join(f"{x:.5g}" for x in r.real_roots))
+        if r.overdamped:  # real roots that spinning made into pairs (amb_dynamics.modes.OVERDAMPED_ZETA)
+            pairs = ", ".join(f"{z.real:.5g}+-{z.imag:.4g}j" for z in r.overdamped)
+            lines.append(f"         overdamped pairs, damping ratio >= {OVERDAMPED_ZETA:g} (1/s): {pairs}")
     return data, "\n".join(lines)
 
 

@@ -1,7 +1,11 @@
 """Closed-loop eigen-analysis at a constant base rate (Omega = 0 by default) over spin speeds.
 
 A mode is a complex-conjugate pair of the closed loop (docs/physics.md#controller), reported once with its damped
-frequency Im(lambda) > 0; real (overdamped) roots are listed separately.  Whirl: forward if
+frequency Im(lambda) > 0; real (overdamped) roots are listed separately, and so are the pairs that spinning makes
+of them: the gyroscopic coupling turns the two equal real roots of an overdamped bearing motion (one per lateral
+direction) into a pair -a +- i b with b << a, a whirl that dies out long before it turns (damping ratio at or above
+OVERDAMPED_ZETA: it decays by a factor e^140 or more per cycle).  Such a pair is no mode a rotor runs through, so
+it is not in ``modes`` (nor in a Campbell diagram) but in ``overdamped_pairs``.  Whirl: forward if
 sum_nodes Im(conj(phi_v) phi_w) < 0 (the orbit turns from +Y toward +Z), docs/physics.md#modes.
 """
 
@@ -16,6 +20,7 @@ from .system import ClosedLoop, coefficients_from_rates
 
 REAL_ROOT_TOL = 1e-9  # |Im lambda| <= tol * |lambda| counts as a real root
 REPEAT_TOL = 1e-7  # eigenvalues this close (relative) form one whirl cluster
+OVERDAMPED_ZETA = 0.999  # a pair this damped is an overdamped motion, not a mode (|Im| < 0.045 |Re|)
 
 
 @dataclass(frozen=True)
@@ -40,6 +45,15 @@ class ModalResult:
     speed_rpm: float
     modes: tuple[Mode, ...]
     real_roots: tuple[float, ...]  # 1/s, sorted by decreasing value (least damped first)
+    overdamped: tuple[complex, ...] = ()  # pairs with damping ratio >= OVERDAMPED_ZETA (Im > 0 member), as real_roots
+
+    @property
+    def stable(self) -> bool:
+        return (
+            all(m.eigenvalue.real < 0 for m in self.modes)
+            and all(r < 0 for r in self.real_roots)
+            and all(z.real < 0 for z in self.overdamped)
+        )
 
     def to_dict(self) -> dict:
         return {
@@ -47,7 +61,8 @@ class ModalResult:
             "spin_rad_s": self.speed_rpm * np.pi / 30,
             "modes": [m.to_dict() for m in self.modes],
             "real_roots_1_s": list(self.real_roots),
-            "stable": all(m.eigenvalue.real < 0 for m in self.modes) and all(r < 0 for r in self.real_roots),
+            "overdamped_pairs_1_s": [[z.real, z.imag] for z in self.overdamped],
+            "stable": self.stable,
         }
 
 
@@ -79,7 +94,7 @@ def modes_at_speed(
     real = [float(z.real) for z in lam[real_mask]]
     upper = np.flatnonzero(~real_mask & (lam.imag > 0))
     upper = upper[np.argsort(lam[upper].imag)]
-    modes = []
+    modes, overdamped = [], []
     i = 0
     while i < upper.size:  # clusters of repeated eigenvalues share one whirl decomposition
         j = i + 1
@@ -88,9 +103,14 @@ def modes_at_speed(
         idx = upper[i:j]
         for k, whirl in zip(idx, whirl_labels(model, vecs[: loop.n, idx]), strict=True):
             z = lam[k]
-            modes.append(Mode(float(z.imag), float(-z.real / abs(z)), whirl, complex(z)))
+            zeta = float(-z.real / abs(z))
+            if zeta >= OVERDAMPED_ZETA:
+                overdamped.append(complex(z))
+            else:
+                modes.append(Mode(float(z.imag), zeta, whirl, complex(z)))
         i = j
-    return ModalResult(float(speed_rpm), tuple(modes), tuple(sorted(real, reverse=True)))
+    overdamped.sort(key=lambda z: z.real, reverse=True)
+    return ModalResult(float(speed_rpm), tuple(modes), tuple(sorted(real, reverse=True)), tuple(overdamped))
 
 
 def campbell_data(model: StructuralModel, loop: ClosedLoop, speeds_rpm) -> list[ModalResult]:
