@@ -6,8 +6,9 @@
    with the stability monitor's verdict, then `amb-bag info` of the bag,
 4. the real rig (config/seed_rotor.yaml: unbalance, gravity, noise, amplifier and sensor dynamics, nonlinear
    bearing force, touchdown bearings) on the plant node's stepping code (`amb-dynamics simulate --sampled`):
-   unbalance orbits inside the clearance circles, a run-up through the first critical speed, and a drop onto the
-   touchdown bearings after a controller failure; the same failure over DDS with `--param controller:fail_at_s=`.
+   the orbits at 1000 rpm (unbalance and noise) inside the clearance circles, a run-up through the first critical
+   speeds, and a drop onto the touchdown bearings after a controller failure; the same failure over DDS with
+   `--param controller:fail_at_s=`.
 """
 
 from __future__ import annotations
@@ -78,7 +79,7 @@ def main() -> None:
 def real_rig(dyn: str) -> None:
     """The real-rig default on the plant node's stepping code (base at rest, every effect of the config)."""
     sim = [dyn, "simulate", "--sampled", "--motion", "none"]
-    step("real rig: unbalance orbits at both AMBs (G2.5, 1000 rpm), inside the clearance circles",
+    step("real rig: orbits at both AMBs at 1000 rpm (G2.5 unbalance, force and sensor noise), inside the clearances",
          [*sim, "--duration", "0.5", "--out", str(OUT / "rig_orbits.png")])  # fmt: skip
     step("real rig: run-up 100 -> 400 rpm at 100 rpm/s through the first critical speeds",
          [*sim, *RAMP, "--duration", "3.2", "--out", str(OUT / "rig_runup.png")])  # fmt: skip
