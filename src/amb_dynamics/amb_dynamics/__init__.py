@@ -40,6 +40,7 @@ _API = {
     "ModalResult": "modes",
     "floquet_multipliers": "floquet:floquet",
     "sampled_floquet": "floquet",
+    "orbit_floquet": "orbit_floquet",
     "aperiodic_exponents": "floquet",
     "FloquetResult": "floquet",
     "stability_chart": "chart",

@@ -19,7 +19,9 @@ from .floquet import aperiodic_exponents, floquet, hybrid_period, sampled_floque
 from .modes import OVERDAMPED_ZETA, campbell_data, modes_at_speed
 from .motion import BaseMotion, Harmonic
 from .newmark import disk_initial_state, fit_growth_rate, newmark
+from .orbit_floquet import orbit_floquet
 from .preflight import digital_over_speeds
+from .rig_loop import levitated_bearing
 from .sampled import SampledLoop
 from .structure import StructuralModel, build_structure
 from .system import ClosedLoop, closed_loop, periodic_system
@@ -150,10 +152,16 @@ def run_floquet(args):
     if ps.period is None:
         return _aperiodic(s, ps, motion, args)
     if args.controller == "continuous":
+        if args.about != "centre":
+            raise InputError(f"--about {args.about} needs --controller sampled (the digital loop the rig runs)")
         res = floquet(ps)
         data = res.to_dict(args.top)
+    elif args.about == "orbit":
+        data = _orbit_floquet(s, motion, ps.period)
     else:
-        loop = SampledLoop(s.model, s.cfg, forcing=False)
+        Ts = 1.0 / s.cfg.controller.rate_hz
+        bearing = levitated_bearing(s.model, s.cfg, Ts) if args.about == "rest" else None
+        loop = SampledLoop(s.model, s.cfg, forcing=False, bearing=bearing)
         pr = hybrid_period(ps.period, loop.Ts) if ps.period is not None else None
         # work in controller samples: the hybrid period, or the three integer ratios of the estimate
         cost = pr[0] if pr else (1 if args.snap else 3) * round((ps.period or 0.0) / loop.Ts)
@@ -164,9 +172,11 @@ def run_floquet(args):
             data = estimate_point(loop, motion, ps.period)
             data["multipliers"] = data["multipliers"][: args.top]
         data["controller_rate_hz"] = 1.0 / loop.Ts
-    data.update(model=describe(s.cfg, s.model), controller=args.controller, motion=motion_dict(motion))
+    data.update(
+        model=describe(s.cfg, s.model), controller=args.controller, motion=motion_dict(motion), about=args.about
+    )
     text = [
-        f"{data['model']}; {motion_text(motion)}, {args.controller} controller",
+        f"{data['model']}; {motion_text(motion)}, {args.controller} controller, {ABOUT[args.about]}",
         f"period {data['period_s']:.6g} s   max|mu| = {data['max_abs_multiplier']:.9f}   "
         f"{'STABLE' if data['stable'] else 'NOT STABLE'}   ({data['method']}, {data.get('steps', '-')} steps)",
     ]
@@ -174,6 +184,38 @@ def run_floquet(args):
         text.append(f"   mu = {z[0]:+.9f} {z[1]:+.9f}j   |mu| = {np.hypot(*z):.9f}")
     text += [f"   note: {n}" for n in data.get("notes", [])]
     return data, "\n".join(text)
+
+
+ABOUT = {
+    "centre": "bearing law at the centre",
+    "rest": "bearing law at the levitated point, level base",
+    "orbit": "bearing law along the forced orbit",
+}
+
+
+def _orbit_floquet(s: Setup, motion: BaseMotion, period: float) -> dict:
+    """The digital loop about its forced orbit (amb_dynamics.orbit_floquet), beside its value at rest."""
+    guards.check_sampled(period, 1.0 / s.cfg.controller.rate_hz, 6 * round(period * s.cfg.controller.rate_hz))
+    data = orbit_floquet(s.model, s.cfg, motion, period)
+    Ts = 1.0 / s.cfg.controller.rate_hz
+    rest = estimate_point(SampledLoop(s.model, s.cfg, forcing=False, bearing=levitated_bearing(s.model, s.cfg, Ts)),
+                          motion, period)  # fmt: skip
+    rho, bound = data["max_abs_multiplier"], data["error_bound"]
+    stable, unstable = rho + bound < 1.0 - 1e-6, rho - bound > 1.0 + 1e-6
+    data.update(
+        stable=bool(stable),
+        verdict="stable" if stable else ("unstable" if unstable else "marginal"),
+        growth_rate_1_s=float(np.log(rho) / period),
+        controller_rate_hz=s.cfg.controller.rate_hz,
+        multipliers=None,
+        at_rest_max_abs_multiplier=rest["max_abs_multiplier"],
+        notes=[
+            "forced orbit (gravity turning with the base; noise, unbalance and runout left out): swing "
+            + ", ".join(f"{c} {v * 1e6:.3g} um" for c, v in zip(s.model.channels, data["orbit_swing_m"], strict=True))
+            + f"; about the levitated point on a level base the loop gives max|mu| = {rest['max_abs_multiplier']:.9f}"
+        ],
+    )
+    return data
 
 
 def _aperiodic(s: Setup, ps, motion: BaseMotion, args):

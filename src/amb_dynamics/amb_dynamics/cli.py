@@ -99,6 +99,9 @@ def build_parser() -> argparse.ArgumentParser:
     _motion(p)
     p.add_argument("--controller", choices=("continuous", "sampled"), default="continuous")
     p.add_argument("--snap", action="store_true", help="sampled: set Ts = T/round(T/Ts) if T/Ts is not rational")
+    about = ("sampled: the bearing law linearised at the centre (default), at the levitated point on a level base "
+             "(the monitor's model), or along the forced orbit of gravity on the moving base")  # fmt: skip
+    p.add_argument("--about", choices=("centre", "rest", "orbit"), default="centre", help=about)
     p.add_argument("--top", type=int, default=12, help="multipliers to print (largest first)")
     p.add_argument("--horizon", type=float, default=20.0, help="aperiodic motion: Lyapunov horizon (s)")
     p = sub.add_parser("chart", help="stability chart of max|mu| over (omega, A)")

@@ -89,16 +89,19 @@ class PlantStepper:
 
     def set_bearing_gains(self, ki: np.ndarray, ks: np.ndarray) -> None:
         """Per-axis current gain ki (N/A) and negative stiffness ks (N/m) in place of the config's (the bearing law
-        linearised at an operating point: :mod:`amb_dynamics.operating_point`)."""
+        linearised at an operating point: :mod:`amb_dynamics.operating_point`).  Each call replaces the previous
+        one (the gains along an orbit: :mod:`amb_dynamics.orbit_floquet`)."""
         model, n = self.model, self.n
-        g, Ba, Minv = model.gains, model.Ba, sla.inv(model.M)
-        self.Ap0 = self.Ap0.copy()
-        self.Ap0[n : 2 * n, :n] -= Minv @ Ba @ np.diag(np.asarray(ks) - g.ks) @ Ba.T
-        force = Minv @ Ba @ np.diag(ki)  # current -> acceleration
+        if not hasattr(self, "_config_matrices"):
+            self._config_matrices = (self.Ap0, self.Bp, sla.inv(model.M) @ model.Ba)
+        Ap0, Bp, MinvBa = self._config_matrices
+        self.Ap0 = Ap0.copy()
+        self.Ap0[n : 2 * n, :n] -= (MinvBa * (np.asarray(ks) - model.gains.ks)) @ model.Ba.T
+        force = MinvBa * np.asarray(ki)  # current -> acceleration (columns scaled per axis)
         if self.layout.amp is not None:
             self.Ap0[n : 2 * n, self.layout.amp] = force
         else:
-            self.Bp = self.Bp.copy()
+            self.Bp = Bp.copy()
             self.Bp[n : 2 * n] = force
         self._cache.clear()
 
