@@ -9,7 +9,7 @@ every 25 steps, angle wrapped to [0, 2 pi) as the plant publishes it).  Scenario
   full state and sensor-only: no flag may go up (the speed nears the 166 rad/s mode at the end);
 * the tongue point pitch 0.6 rad at 21.6 rad/s (max|mu| per T = pi/omega at 1000 rpm: the monitor's model, the
   loop linearised at the levitated operating point, 1.0595; about the forced orbit of gravity, the rig's own
-  multiplier, 1.0562: amb_dynamics.orbit_floquet; both printed) while the speed rises slowly, 1000 -> 1060 rpm
+  multiplier, 1.0562: amb_dynamics.forced_orbit; both printed) while the speed rises slowly, 1000 -> 1060 rpm
   at 10 rpm/s: the flag must still go up; its time in base periods is printed;
 * Monte Carlo (stability_monitor/montecarlo.py, on a local Dask cluster of 2 workers): MC_RUNS runs at the tongue
   point (up to 5 s each: a run ends once both modes have flagged) and at the stable default point (100 periods T
@@ -108,7 +108,7 @@ def monte_carlo(runs: int = MC_RUNS, workers: int = 2) -> dict:
 def orbit_value(sets, T: float) -> float:
     """max|mu| per T of the real rig's digital loop about its forced orbit on the pitch motion of ``sets``."""
     from amb_dynamics.motion import BaseMotion
-    from amb_dynamics.orbit_floquet import orbit_floquet
+    from amb_dynamics.forced_orbit import orbit_floquet
     from amb_dynamics.structure import build_structure
 
     cfg = load_config(None, list(sets))

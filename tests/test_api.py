@@ -7,6 +7,7 @@ fresh process (/proc/self/task) shows whether an entry point set the variable in
 from __future__ import annotations
 
 import ast
+import importlib.util
 import json
 import os
 import subprocess
@@ -66,6 +67,9 @@ def test_every_public_name_resolves_and_unknown_names_fail():
         assert callable(obj), name
         assert obj.__module__.startswith("amb_dynamics."), name
     assert set(amb_dynamics.__all__) <= set(dir(amb_dynamics))
+    # a public name that is also a submodule's would be replaced by the module once anything imports it
+    clash = [n for n in amb_dynamics.__all__ if importlib.util.find_spec(f"amb_dynamics.{n}") is not None]
+    assert clash == [], clash
     with pytest.raises(AttributeError, match="no_such_name"):
         _ = amb_dynamics.no_such_name
 

@@ -174,10 +174,10 @@ def test_the_level_base_model_of_a_tilting_rig_is_within_the_mismatch_allowance(
     1.0560 (the loop linearised at rest on a level base), and 1.0071 against 1.0105: up to a third of the
     model's distance from 1 (with a small orbit the rig equals its model: the test above).  The monitor's own
     check must not call the config's rig a "model mismatch"; the level-base model is closer than the centred
-    law.  The loop linearised along its forced orbit (amb_dynamics.orbit_floquet: 1.04991 and 1.00692) gives the
+    law.  The loop linearised along its forced orbit (amb_dynamics.forced_orbit: 1.04991 and 1.00692) gives the
     rig's growth to within the fit's own error (the orbit value is the rig's period map's to 1e-5:
     tests/test_orbit_floquet.py), 7 to 17 times closer than the level-base model."""
-    from amb_dynamics.orbit_floquet import orbit_floquet
+    from amb_dynamics.forced_orbit import orbit_floquet
     from amb_dynamics.rig_loop import levitated_bearing
     from stability_monitor.model_check import ModelValue
 

@@ -1,4 +1,4 @@
-"""The digital loop's multiplier about its forced orbit (amb_dynamics.orbit_floquet) against two other codes.
+"""The digital loop's multiplier about its forced orbit (amb_dynamics.forced_orbit) against two other codes.
 
 * The rig's own period map: the orbit is a fixed point of m steps of ``RigPlant.step`` (the plant node's stepping
   code: the bearing law by a predictor-corrector, gravity from the integrated attitude) closed by the controller;
@@ -19,7 +19,7 @@ import numpy as np
 from amb_dynamics import cli
 from amb_dynamics.config import load_config, paper_config_path
 from amb_dynamics.motion import BaseMotion
-from amb_dynamics.orbit_floquet import _Loop, orbit_floquet, quiet_config
+from amb_dynamics.forced_orbit import _Loop, orbit_floquet, quiet_config
 from amb_dynamics.structure import build_structure
 
 

@@ -40,7 +40,7 @@ _API = {
     "ModalResult": "modes",
     "floquet_multipliers": "floquet:floquet",
     "sampled_floquet": "floquet",
-    "orbit_floquet": "orbit_floquet",
+    "orbit_floquet": "forced_orbit",
     "aperiodic_exponents": "floquet",
     "FloquetResult": "floquet",
     "stability_chart": "chart",

@@ -19,7 +19,7 @@ from .floquet import aperiodic_exponents, floquet, hybrid_period, sampled_floque
 from .modes import OVERDAMPED_ZETA, campbell_data, modes_at_speed
 from .motion import BaseMotion, Harmonic
 from .newmark import disk_initial_state, fit_growth_rate, newmark
-from .orbit_floquet import orbit_floquet
+from .forced_orbit import orbit_floquet
 from .preflight import digital_over_speeds
 from .rig_loop import levitated_bearing
 from .sampled import SampledLoop
@@ -194,7 +194,7 @@ ABOUT = {
 
 
 def _orbit_floquet(s: Setup, motion: BaseMotion, period: float) -> dict:
-    """The digital loop about its forced orbit (amb_dynamics.orbit_floquet), beside its value at rest."""
+    """The digital loop about its forced orbit (amb_dynamics.forced_orbit), beside its value at rest."""
     guards.check_sampled(period, 1.0 / s.cfg.controller.rate_hz, 6 * round(period * s.cfg.controller.rate_hz))
     data = orbit_floquet(s.model, s.cfg, motion, period)
     Ts = 1.0 / s.cfg.controller.rate_hz

@@ -90,7 +90,7 @@ class PlantStepper:
     def set_bearing_gains(self, ki: np.ndarray, ks: np.ndarray) -> None:
         """Per-axis current gain ki (N/A) and negative stiffness ks (N/m) in place of the config's (the bearing law
         linearised at an operating point: :mod:`amb_dynamics.operating_point`).  Each call replaces the previous
-        one (the gains along an orbit: :mod:`amb_dynamics.orbit_floquet`)."""
+        one (the gains along an orbit: :mod:`amb_dynamics.forced_orbit`)."""
         model, n = self.model, self.n
         if not hasattr(self, "_config_matrices"):
             self._config_matrices = (self.Ap0, self.Bp, sla.inv(model.M) @ model.Ba)
