@@ -107,8 +107,8 @@ def monte_carlo(runs: int = MC_RUNS, workers: int = 2) -> dict:
 
 def orbit_value(sets, T: float) -> float:
     """max|mu| per T of the real rig's digital loop about its forced orbit on the pitch motion of ``sets``."""
-    from amb_dynamics.motion import BaseMotion
     from amb_dynamics.forced_orbit import orbit_floquet
+    from amb_dynamics.motion import BaseMotion
     from amb_dynamics.structure import build_structure
 
     cfg = load_config(None, list(sets))

@@ -18,8 +18,8 @@ import numpy as np
 
 from amb_dynamics import cli
 from amb_dynamics.config import load_config, paper_config_path
-from amb_dynamics.motion import BaseMotion
 from amb_dynamics.forced_orbit import _Loop, orbit_floquet, quiet_config
+from amb_dynamics.motion import BaseMotion
 from amb_dynamics.structure import build_structure
 
 

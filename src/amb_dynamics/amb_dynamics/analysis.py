@@ -16,10 +16,10 @@ from .config import RotorConfig, load_config
 from .digital_floquet import estimate_point
 from .errors import InputError
 from .floquet import aperiodic_exponents, floquet, hybrid_period, sampled_floquet
+from .forced_orbit import orbit_floquet
 from .modes import OVERDAMPED_ZETA, campbell_data, modes_at_speed
 from .motion import BaseMotion, Harmonic
 from .newmark import disk_initial_state, fit_growth_rate, newmark
-from .forced_orbit import orbit_floquet
 from .preflight import digital_over_speeds
 from .rig_loop import levitated_bearing
 from .sampled import SampledLoop
