@@ -13,7 +13,7 @@ import numpy as np
 from . import guards, plots
 from .analysis_sensitivity import run_sensitivity  # noqa: F401  (the `sensitivity` verb)
 from .config import RotorConfig, load_config
-from .digital_floquet import estimate_point
+from .digital_floquet import estimate_point, verdict_of
 from .errors import InputError
 from .floquet import aperiodic_exponents, floquet, hybrid_period, sampled_floquet
 from .forced_orbit import orbit_floquet
@@ -200,11 +200,11 @@ def _orbit_floquet(s: Setup, motion: BaseMotion, period: float) -> dict:
     Ts = 1.0 / s.cfg.controller.rate_hz
     rest = estimate_point(SampledLoop(s.model, s.cfg, forcing=False, bearing=levitated_bearing(s.model, s.cfg, Ts)),
                           motion, period)  # fmt: skip
-    rho, bound = data["max_abs_multiplier"], data["error_bound"]
-    stable, unstable = rho + bound < 1.0 - 1e-6, rho - bound > 1.0 + 1e-6
+    rho = data["max_abs_multiplier"]
+    stable, verdict = verdict_of(rho, data["error_bound"])
     data.update(
-        stable=bool(stable),
-        verdict="stable" if stable else ("unstable" if unstable else "marginal"),
+        stable=stable,
+        verdict=verdict,
         growth_rate_1_s=float(np.log(rho) / period),
         controller_rate_hz=s.cfg.controller.rate_hz,
         multipliers=None,

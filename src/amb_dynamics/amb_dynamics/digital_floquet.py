@@ -106,13 +106,12 @@ def estimate_point(loop: SampledLoop, motion: BaseMotion, period: float) -> dict
     rho, bound = plan.combine([res.max_abs for res in results])
     nearest = min(range(3), key=lambda i: abs(plan.ratios[i][0] - x))
     data = results[nearest].to_dict()
-    stable = rho + bound < 1.0 - 1e-6
-    unstable = rho - bound > 1.0 + 1e-6
+    stable, verdict = verdict_of(rho, bound)
     data.update(
         max_abs_multiplier=rho,
         growth_rate_1_s=float(np.log(max(rho, 1e-300)) / period),
-        stable=bool(stable),
-        verdict="stable" if stable else ("unstable" if unstable else "marginal"),
+        stable=stable,
+        verdict=verdict,
         method=plan.method,
         steps=int(sum(p for p, _ in plan.ratios)),
         error_bound=bound,
@@ -125,6 +124,13 @@ def estimate_point(loop: SampledLoop, motion: BaseMotion, period: float) -> dict
         ],
     )
     return data
+
+
+def verdict_of(rho: float, bound: float) -> tuple[bool, str]:
+    """(stable, "stable" | "unstable" | "marginal") of max|mu| = rho +- bound."""
+    if rho + bound < 1.0 - 1e-6:
+        return True, "stable"
+    return False, "unstable" if rho - bound > 1.0 + 1e-6 else "marginal"
 
 
 def spectral_radius_at_rest(loop: SampledLoop) -> float:
