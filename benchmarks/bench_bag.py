@@ -114,10 +114,9 @@ def flood_publisher(steps: int, diagnostics: bool = True, rate: float = 0.0) -> 
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     from amb_bag.msgdefs import message_class
-    from amb_ros.fastdds import rig_transports
+    from amb_ros.fastdds import init_rclpy
 
-    with rig_transports():  # as the nodes start DDS (like with like)
-        rclpy.init()
+    init_rclpy()  # as the nodes start DDS (like with like)
     node = rclpy.create_node("bag_bench_flood", enable_rosout=False)
     qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=1000, reliability=ReliabilityPolicy.RELIABLE)
     mix = lockstep_mix()
@@ -158,10 +157,9 @@ def bare_sink(expected: int) -> None:
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     from amb_bag.msgdefs import message_class
-    from amb_ros.fastdds import rig_transports
+    from amb_ros.fastdds import init_rclpy
 
-    with rig_transports():  # as the nodes start DDS (like with like)
-        rclpy.init()
+    init_rclpy()  # as the nodes start DDS (like with like)
     node = rclpy.create_node("bag_bench_sink", enable_rosout=False)
     qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=1000, reliability=ReliabilityPolicy.RELIABLE)
     subs = [node.create_subscription(message_class(ty), t, lambda _m: None, qos, raw=True) for t, ty, _ in

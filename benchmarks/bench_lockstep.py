@@ -70,12 +70,11 @@ def _pingpong_side(role: str, tag: str, n: int, path: str = "waitset") -> None:
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
     from sensor_msgs.msg import JointState
 
-    from amb_ros.fastdds import rig_transports
+    from amb_ros.fastdds import init_rclpy
     from amb_ros.messages import joint_state_codec
     from amb_ros.qos import lockstep_qos
 
-    with rig_transports():  # as the nodes start DDS (like with like)
-        rclpy.init()
+    init_rclpy()  # as the nodes start DDS (like with like)
     node = rclpy.create_node(f"pingpong_{role}")
     out_t, in_t = (
         (f"/bench/ping{tag}", f"/bench/pong{tag}") if role == "ping" else (f"/bench/pong{tag}", f"/bench/ping{tag}")

@@ -70,10 +70,9 @@ def bare_reader() -> None:
         "/base/angular_acceleration": Vector3Stamped,
         "/amb_plant/state": JointTrajectory,
     }
-    from amb_ros.fastdds import rig_transports
+    from amb_ros.fastdds import init_rclpy
 
-    with rig_transports():  # as the nodes start DDS (like with like)
-        rclpy.init()
+    init_rclpy()  # as the nodes start DDS (like with like)
     node = rclpy.create_node("bench_bare_reader")
     subs = [node.create_subscription(types.get(t, JointState), t, lambda _: None, lockstep_qos(), raw=True)
             for t in RIG_TOPICS]  # fmt: skip

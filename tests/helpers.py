@@ -26,7 +26,7 @@ from amb_bringup.supervisor import alive
 from amb_dynamics import BaseMotion, SampledLoop, build_structure, load_config, sampled_floquet
 from amb_dynamics.config import paper_config_path
 from amb_dynamics.estimator.mapfit import forcing_regressors
-from amb_ros.fastdds import rig_transports
+from amb_ros.fastdds import init_rclpy
 from procs import spawn
 
 
@@ -47,8 +47,7 @@ class DdsRecorder:
         from amb_ros.qos import diagnostics_qos, lockstep_qos
 
         self.ctx = rclpy.Context()
-        with rig_transports():  # as the nodes start DDS
-            rclpy.init(context=self.ctx)
+        init_rclpy(context=self.ctx)
         self.node = rclpy.create_node(name, context=self.ctx)
         self.messages: dict[str, list] = {t: [] for t in topics}
         qos = qos if qos is not None else lockstep_qos(100000)
@@ -295,8 +294,7 @@ def ros_node(name: str):
     import rclpy
 
     ctx = rclpy.Context()
-    with rig_transports():  # as the nodes start DDS
-        rclpy.init(context=ctx)
+    init_rclpy(context=ctx)
     node = rclpy.create_node(name, context=ctx)
     executor = rclpy.executors.SingleThreadedExecutor(context=ctx)
     executor.add_node(node)

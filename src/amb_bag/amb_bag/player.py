@@ -56,7 +56,7 @@ def play(opts: PlayOptions) -> int:
         raise BagError(f"{opts.bag} holds no messages")
 
     from amb_ros.env import ensure_localhost_dds
-    from amb_ros.fastdds import rig_transports
+    from amb_ros.fastdds import init_rclpy
 
     ensure_localhost_dds()
     import rclpy
@@ -64,8 +64,7 @@ def play(opts: PlayOptions) -> int:
     from rclpy.qos import ReliabilityPolicy
     from rclpy.signals import SignalHandlerOptions
 
-    with rig_transports():
-        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    init_rclpy(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("amb_bag_player", enable_rosout=False, start_parameter_services=False)
     stop = {"now": False}
 

@@ -292,7 +292,7 @@ def _normalise(topic: str) -> str:
 def record(opts: RecordOptions) -> dict:
     """Run a recording until SIGINT/SIGTERM or ``duration``; returns the loss rows."""
     from amb_ros.env import ensure_localhost_dds
-    from amb_ros.fastdds import rig_transports
+    from amb_ros.fastdds import init_rclpy
 
     ensure_localhost_dds()
     if opts.priority not in PRIORITIES:
@@ -308,8 +308,7 @@ def record(opts: RecordOptions) -> dict:
     from amb_ros.diagnostics import Diagnostics
     from amb_ros.scheduling import consumer_priority
 
-    with rig_transports():
-        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    init_rclpy(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(NODE_NAME, enable_rosout=False, start_parameter_services=False)
     # a named collector (amb-rig's) must hear the final report, an error's too: it waits for that reader
     collector = opts.diagnostics_collector

@@ -167,7 +167,7 @@ def run(args) -> int:
     from amb_bag.msgdefs import message_class
     from amb_dynamics.config import load_config
     from amb_dynamics.errors import InputError
-    from amb_ros.fastdds import rig_transports
+    from amb_ros.fastdds import init_rclpy
     from amb_ros.qos import diagnostics_qos, latched_qos
     from amb_ros.scheduling import consumer_priority
 
@@ -177,8 +177,7 @@ def run(args) -> int:
     except RuntimeError as exc:
         raise InputError(f"cannot serve on {args.host}:{args.port} ({str(exc).splitlines()[0]})") from None
     stop = []
-    with rig_transports():
-        rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)  # stop cleanly on our own flag
+    init_rclpy(args=[], signal_handler_options=SignalHandlerOptions.NO)  # stop cleanly on our own flag
     signal.signal(signal.SIGINT, lambda *_: stop.append(1))
     signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
     node = rclpy.create_node("amb_live", enable_rosout=False, start_parameter_services=False)

@@ -33,7 +33,7 @@ from amb_dynamics.errors import AmbError
 from amb_dynamics.preflight import rig_preflight
 from amb_ros.discovery import DiscoveryError, apply_choice
 from amb_ros.env import DdsEnvError, child_env, ensure_localhost_dds, hold_run_lock
-from amb_ros.fastdds import rig_transports
+from amb_ros.fastdds import init_rclpy
 from amb_ros.shm_clean import clean_stale_shm
 
 from . import live, paramfile, split
@@ -197,8 +197,7 @@ def run(args, cfg, lock) -> int:
     signal.signal(signal.SIGINT, interrupted)
     signal.signal(signal.SIGTERM, interrupted)
     domain = os.environ["ROS_DOMAIN_ID"]  # set by ensure_localhost_dds
-    with rig_transports():
-        rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
+    init_rclpy(args=[], signal_handler_options=SignalHandlerOptions.NO)
     collector = DiagnosticsCollector(args.collector_name)
     topics = topics_of(spec.name for spec in specs)
     found = foreign_publishers(collector.node, topics)

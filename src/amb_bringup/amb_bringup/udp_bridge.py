@@ -149,7 +149,7 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     from amb_dynamics.errors import AmbError
     from amb_ros.env import DdsEnvError, ensure_localhost_dds
-    from amb_ros.fastdds import rig_transports
+    from amb_ros.fastdds import init_rclpy
 
     try:
         ensure_localhost_dds()
@@ -164,8 +164,7 @@ def main(argv: list[str] | None = None) -> None:
     stop = threading.Event()
     signal.signal(signal.SIGINT, lambda *_: stop.set())
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    with rig_transports():
-        rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)  # stopped by ``stop``, cleanly
+    init_rclpy(args=[], signal_handler_options=SignalHandlerOptions.NO)  # stopped by ``stop``, cleanly
     try:
         code = Bridge(args, stop).run()
     except (AmbError, OSError) as exc:

@@ -11,9 +11,10 @@ discovery the user asked for (the writer settings alone: Fast DDS's own transpor
 With localhost discovery, rmw_fastrtps would add transports of its own for LOCALHOST (a UDPv4 transport that no
 XML restricts, with send sockets on 0.0.0.0 and on each interface address).  The localhost file therefore
 configures the whole participant (loopback transports, unicast discovery to 127.0.0.1, no multicast), and
-:func:`rig_transports` tells rmw_fastrtps, for the duration of ``rclpy.init`` only, to leave the transports to it
-(range SYSTEM_DEFAULT, which makes rmw_fastrtps add nothing).  It does so only when that file is the profile in
-force and the RMW is Fast DDS; otherwise rmw_fastrtps's own LOCALHOST handling stays.
+:func:`init_rclpy` starts DDS inside :func:`rig_transports`, which tells rmw_fastrtps, for the duration of
+``rclpy.init`` only, to leave the transports to it (range SYSTEM_DEFAULT, which makes rmw_fastrtps add nothing).
+It does so only when that file is the profile in force and the RMW is Fast DDS; otherwise rmw_fastrtps's own
+LOCALHOST handling stays.
 
 On by default; ``AMB_RIG_FASTDDS_PROFILE=0`` turns it off.  With it, short lockstep runs got fast enough to end
 before amb-rig's collector had discovered base_motion and the controller, whose reports were then lost; every
@@ -75,3 +76,11 @@ def rig_transports():
         yield True
     finally:
         os.environ[RANGE_VAR] = LOCALHOST
+
+
+def init_rclpy(**kwargs) -> None:
+    """``rclpy.init(**kwargs)`` inside :func:`rig_transports`: how every process of the project starts DDS."""
+    import rclpy
+
+    with rig_transports():
+        rclpy.init(**kwargs)

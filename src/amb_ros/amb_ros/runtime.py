@@ -20,7 +20,7 @@ from typing import NoReturn
 from amb_dynamics.errors import AmbError
 
 from .env import DdsEnvError, ensure_localhost_dds
-from .fastdds import rig_transports
+from .fastdds import init_rclpy
 
 EXIT_OK = 0
 EXIT_USAGE = 2  # bad parameter, config or environment
@@ -72,8 +72,7 @@ def run_node(name: str, factory, args: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
     try:
-        with rig_transports():
-            rclpy.init(args=args if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
+        init_rclpy(args=args if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rclpy's RCLInvalidROSArgsError and friends: a usage error, not a bug
         print(f"{name}: cannot initialise ROS ({str(exc).splitlines()[0]})", file=sys.stderr)
         return EXIT_USAGE
