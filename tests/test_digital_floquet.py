@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from amb_dynamics.config import load_config
-from amb_dynamics.digital_chart import digital_row
+from amb_dynamics.digital_chart import _tree_product_into, digital_row
 from amb_dynamics.digital_floquet import estimate_point, interpolate_ratio, plan_ratio
 from amb_dynamics.floquet import sampled_floquet
 from amb_dynamics.motion import BaseMotion
@@ -120,3 +120,14 @@ def test_chart_row_with_one_sample_delay_equals_single_point(paper):
     assert abs(row.rho[1] - ref) <= 1e-10 * ref  # relative: with the delay this loop is unstable at rest
     no_delay = digital_row(SampledLoop(model, cfg, forcing=False), "pitch", omega, np.array([0.45])).rho[0]
     assert abs(no_delay - row.rho[1]) > 1e-6  # the delay changes the answer: it is really in the maps
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 64, 45])
+def test_buffered_pairwise_product_equals_the_ordered_product(n):
+    rng = np.random.default_rng(n)
+    S = rng.normal(size=(3, n, 5, 5))
+    ref = np.broadcast_to(np.eye(5), (3, 5, 5)).copy()
+    for k in range(n):  # S[:, n-1] @ ... @ S[:, 0], one factor at a time
+        ref = S[:, k] @ ref
+    got = _tree_product_into(S.copy(), np.empty((3, (n + 1) // 2, 5, 5)))
+    assert np.abs(got - ref).max() <= 1e-12 * np.abs(ref).max()

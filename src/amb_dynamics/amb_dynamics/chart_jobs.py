@@ -24,7 +24,7 @@ from .structure import build_structure
 from .system import closed_loop
 
 SCHEMA_VERSION = 1
-CACHE_VERSION = "chart-5"  # bump when the numbers a chunk produces change
+CACHE_VERSION = "chart-6"  # bump when the numbers a chunk produces change
 _MEMO: dict[bytes, object] = {}
 
 
