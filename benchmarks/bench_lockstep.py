@@ -2,13 +2,14 @@
 
     .venv/bin/python benchmarks/bench_lockstep.py [--duration 2] [--round-trips 5000]
 
-1. Bare rclpy inter-process ping-pong, the physical limit of one lockstep step (one round trip per step): two
-   processes echo a 4-channel JointState with the nodes' own transport settings (reliable, transient local,
-   raw CDR, one reused wait set, synchronous Fast DDS publication).  Measured before and after the lockstep
-   run; their mean is the baseline.
-2. Lockstep: ``amb-rig run --no-monitor`` with base_motion, plant and controller as separate processes (the seed
-   rotor, 5 kHz, pitch 0.3 rad at 24.5 rad/s, current limit lifted so the linear run stays defined), with normal
-   scheduling and with ``--rt-priority 20`` (SCHED_FIFO), alternating, ``repeats`` runs each (medians); steps/s
+1. Bare rclpy inter-process ping-pong (benchmarks/pingpong.py), the physical limit of one lockstep step (one
+   round trip per step): two processes echo a 4-channel JointState with the nodes' own transport settings
+   (reliable, transient local, raw CDR, one reused wait set, synchronous Fast DDS publication).  Measured before
+   and after the lockstep runs; their mean is the baseline.
+2. Lockstep: ``amb-rig run --no-monitor`` with base_motion, plant and controller as separate processes (the
+   paper config, 5 kHz, pitch 0.3 rad at 24.5 rad/s, current limit lifted so the linear run stays defined), with
+   normal scheduling and with ``--rt-priority 20`` (SCHED_FIFO), and ``amb-rig run`` with its default stability
+   monitor beside the loop (goal >= 0.8 x the ping-pong), alternating, ``repeats`` runs each (medians); steps/s
    is the plant's own loop rate (start-up excluded).  Printed: steps/s and the ratio to the ping-pong.
 3. Realtime 1 kHz for 5 s (modal_cutoff 800 rad/s, stable at 1 and 2 kHz, SCHED_FIFO 20 as amb-rig's default):
    the period error p50/p99/max of the wall-clock timers (the plant's sample clock, and the controller with
@@ -32,13 +33,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
 import subprocess
 import sys
-import time
 from pathlib import Path
 
+from pingpong import bench_env, pingpong, pingpong_detail
 from report import record, record_ratio
 
 BIN = Path(sys.executable).parent
@@ -48,181 +48,16 @@ PAPER = ["--config", str(Path(__file__).resolve().parents[1] / "config" / "seed_
 RIG_2KHZ = Path(__file__).resolve().parents[1] / "config" / "seed_rotor_2khz_lqg.yaml"
 GOAL_STEPS_PER_S = 2000.0
 GOAL_P99_US = 100.0
+GOAL_PINGPONG_RATIO = 0.8  # lockstep steps/s over the same run's ping-pong round trips/s, monitor on
 GOAL_REAL_RIG_RATIO = 0.9  # the real-rig default's lockstep steps/s over the paper config's, same run
 CPU_TOOL = Path(__file__).resolve().parents[1] / "tools" / "rig_cpu.py"
 CPU_RUNS = 2  # measurements of tools/rig_cpu.py (each a short and a long run)
 CPU_NODES = {"amb-plant": "<= 40", "amb-controller": "<= 40", "amb-base-motion": None}
 
 
-def _env() -> dict:
-    from amb_ros.env import child_env
-    from amb_ros.runtime import low_latency_dds
-
-    env = child_env(OPENBLAS_NUM_THREADS="1")
-    low_latency_dds(env)
-    return env
-
-
-# -- ping-pong (both sides run as child processes of this script) ---------------------------------------
-def _pingpong_side(role: str, tag: str, n: int, path: str = "waitset") -> None:
-    import numpy as np
-    import rclpy
-    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-    from sensor_msgs.msg import JointState
-
-    from amb_ros.fastdds import init_rclpy
-    from amb_ros.messages import joint_state_codec
-    from amb_ros.qos import lockstep_qos
-
-    init_rclpy()  # as the nodes start DDS (like with like)
-    node = rclpy.create_node(f"pingpong_{role}")
-    out_t, in_t = (
-        (f"/bench/ping{tag}", f"/bench/pong{tag}") if role == "ping" else (f"/bench/pong{tag}", f"/bench/ping{tag}")
-    )
-    pub = node.create_publisher(JointState, out_t, lockstep_qos())
-    sub = node.create_subscription(JointState, in_t, lambda _: None, lockstep_qos(), raw=True)
-    codec = joint_state_codec(("amb1_y", "amb1_z", "amb5_y", "amb5_z"), ("position",))
-    ws = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, node.context.handle)
-    end = time.monotonic() + 30.0
-    while (pub.get_subscription_count() < 1 or node.count_publishers(in_t) < 1) and time.monotonic() < end:
-        time.sleep(0.01)
-
-    def receive() -> bytes:
-        limit = time.monotonic() + 10.0
-        while time.monotonic() < limit:
-            out = sub.handle.take_message(sub.msg_type, True)
-            if out is not None:
-                return out[0]
-            ws.clear_entities()
-            ws.add_subscription(sub.handle)
-            ws.wait(100_000_000)
-        raise SystemExit(f"pingpong {role}: no message for 10 s")
-
-    y = np.zeros(4)
-    if path != "waitset":
-        _pingpong_callbacks(role, n, path, node, pub, sub, codec)
-        return
-    if role == "ping":
-        time.sleep(0.2)
-        t0, c0 = time.perf_counter(), time.process_time()
-        for k in range(n):
-            y[0] = k
-            pub.publish(codec.encode(k, y))
-            if codec.decode(receive())[1][0] != k:
-                raise SystemExit("pingpong: echo out of order")
-        rate, cpu = n / (time.perf_counter() - t0), time.process_time() - c0
-        print(json.dumps({"round_trips_per_s": rate, "cpu_us": 1e6 * cpu / n}), flush=True)
-    else:  # the CPU of every thread of the process (time.process_time), from the first ping on
-        pub.publish(receive())
-        c0 = time.process_time()
-        for _ in range(n - 1):
-            pub.publish(receive())
-        print(json.dumps({"cpu_us": 1e6 * (time.process_time() - c0) / (n - 1)}), flush=True)
-        pub.wait_for_all_acked()
-    node.destroy_node()
-    rclpy.shutdown()
-
-
-def _pingpong_callbacks(role: str, n: int, path: str, node, pub, sub_unused, codec) -> None:
-    """The same ping-pong driven by subscription callbacks of an executor: rclpy's EventsExecutor
-    (rclpy.experimental) or the standard SingleThreadedExecutor."""
-    import numpy as np
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.experimental import EventsExecutor
-    from rclpy.task import Future
-    from sensor_msgs.msg import JointState
-
-    from amb_ros.qos import lockstep_qos
-
-    in_t = sub_unused.topic_name
-    node.destroy_subscription(sub_unused)
-    done, y, count, t0 = Future(), np.zeros(4), [0], [0.0]
-
-    def on_message(raw: bytes) -> None:
-        if role == "echo":
-            pub.publish(raw)
-            count[0] += 1
-            if count[0] == n:
-                done.set_result(True)
-            return
-        k = int(codec.decode(raw)[1][0])
-        if k < count[0]:  # the echo of a resent first ping
-            return
-        if k != count[0]:
-            raise SystemExit("pingpong: echo out of order")
-        count[0] += 1
-        if count[0] == n:
-            done.set_result(n / (time.perf_counter() - t0[0]))
-            return
-        y[0] = count[0]
-        pub.publish(codec.encode(count[0], y))
-
-    sub = node.create_subscription(JointState, in_t, on_message, lockstep_qos(), raw=True)
-    executor = EventsExecutor() if path == "events" else SingleThreadedExecutor()
-    executor.add_node(node)
-    end = time.monotonic() + 30.0  # both of this side's endpoints matched again (the new subscription too)
-    while (pub.get_subscription_count() < 1 or sub.get_publisher_count() < 1) and time.monotonic() < end:
-        time.sleep(0.01)
-    time.sleep(0.5)  # and the other side's
-    if role == "ping":  # the first ping again until it is echoed: a reader that did not yet know this writer
-        for _ in range(20):  # drops a volatile sample (the later echoes of a resent one are ignored)
-            t0[0] = time.perf_counter()
-            pub.publish(codec.encode(0, y))
-            while count[0] == 0 and time.perf_counter() - t0[0] < 0.5:
-                executor.spin_once(timeout_sec=0.05)
-            if count[0]:
-                break
-    executor.spin_until_future_complete(done, timeout_sec=60.0)
-    if not done.done():
-        raise SystemExit(f"pingpong {role} ({path}): not finished in 60 s")
-    if role == "ping":
-        print(json.dumps({"round_trips_per_s": done.result()}), flush=True)
-    else:  # a resent first ping makes one message more than n: echo until the ping side has left
-        end = time.monotonic() + 5.0
-        while node.count_publishers(in_t) > 0 and time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.05)
-        pub.wait_for_all_acked()
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.shutdown()
-
-
-def pingpong(n: int, path: str = "waitset") -> float:
-    """Round trips/s of two processes echoing a 4-channel JointState: ``path`` waitset (the nodes' own wait-set
-    loop), events (EventsExecutor callbacks) or single (SingleThreadedExecutor callbacks)."""
-    return pingpong_detail(n, path)["round_trips_per_s"]
-
-
-def pingpong_detail(n: int, path: str = "waitset") -> dict:
-    """:func:`pingpong` with, on the wait-set path, the CPU time per round trip of each side's process, all
-    threads (``ping_cpu_us``: publishes then takes, as the plant; ``echo_cpu_us``: takes then publishes, as the
-    controller): what one lockstep step's DDS traffic costs rclpy with no computation at all."""
-    env, tag = _env(), f"{os.getpid()}_{time.monotonic_ns() % 10**6}"
-    cmd = [sys.executable, __file__, "--pingpong-side"]
-    echo = subprocess.Popen([*cmd, "echo", tag, str(n), path], env=env, stdout=subprocess.PIPE, text=True)
-    try:
-        out = subprocess.run([*cmd, "ping", tag, str(n), path], env=env, capture_output=True, text=True,
-                             timeout=120)  # fmt: skip
-    finally:
-        try:
-            echo_out = echo.communicate(timeout=15)[0]
-        except subprocess.TimeoutExpired:
-            echo.kill()
-            echo_out = echo.communicate()[0]
-    if out.returncode:
-        raise RuntimeError(f"ping-pong failed: {out.stderr.strip()[-300:]}")
-    ping = json.loads(out.stdout.strip().splitlines()[-1])
-    result = {"round_trips_per_s": ping["round_trips_per_s"]}
-    echo_lines = [ln for ln in (echo_out or "").splitlines() if ln.startswith("{")]
-    if path == "waitset" and echo_lines:
-        result.update(ping_cpu_us=ping["cpu_us"], echo_cpu_us=json.loads(echo_lines[-1])["cpu_us"])
-    return result
-
-
 # -- amb-rig runs -------------------------------------------------------------------------------------
 def rig(args: list[str], timeout: float = 600.0, require_ok: bool = True, config: list[str] = PAPER) -> dict:
-    out = subprocess.run([str(BIN / "amb-rig"), "run", "--json", *config, *args], env=_env(), capture_output=True,
+    out = subprocess.run([str(BIN / "amb-rig"), "run", "--json", *config, *args], env=bench_env(), capture_output=True,
                          text=True, timeout=timeout)  # fmt: skip
     try:
         summary = json.loads(out.stdout)
@@ -233,11 +68,12 @@ def rig(args: list[str], timeout: float = 600.0, require_ok: bool = True, config
     return summary
 
 
-def lockstep(duration: float, rt_priority: int, real_rig: bool = False) -> dict:
+def lockstep(duration: float, rt_priority: int, real_rig: bool = False, monitor: bool = False) -> dict:
+    watch = [] if monitor else ["--no-monitor"]  # amb-rig's default runs the stability monitor beside the loop
     if real_rig:  # the default config: its own current limit (below the bias), every effect on
-        s = rig(["--duration", str(duration), "--no-monitor", "--rt-priority", str(rt_priority)], config=[])
+        s = rig(["--duration", str(duration), *watch, "--rt-priority", str(rt_priority)], config=[])
     else:
-        s = rig(["--duration", str(duration), "--no-monitor", "--rt-priority", str(rt_priority),
+        s = rig(["--duration", str(duration), *watch, "--rt-priority", str(rt_priority),
                  "--set", "controller.current_limit=1e9"])  # fmt: skip
     return {"steps": s["steps"], "steps_per_s": s["steps_per_s"], "wall_s": s["wall_s"],
             "scheduling": s["nodes"]["plant"]["values"]["scheduling"]}  # fmt: skip
@@ -278,7 +114,7 @@ def realtime(trigger: str, rate_hz: int = 1000, duration: float = 5.0, real_rig:
 def cpu_per_step(runs: int = CPU_RUNS) -> list[dict]:
     """tools/rig_cpu.py's measurements: [{"steps_per_s", "us_per_step": {process: {thread group: us}}}, ...]."""
     out = subprocess.run([sys.executable, str(CPU_TOOL), "--json", "--runs", str(runs), "--duration", "0.5"],
-                         env=_env(), capture_output=True, text=True, timeout=900)  # fmt: skip
+                         env=bench_env(), capture_output=True, text=True, timeout=900)  # fmt: skip
     if out.returncode != 0:
         raise RuntimeError(f"tools/rig_cpu.py failed: {out.stderr.strip()[-500:]}")
     return [json.loads(line) for line in out.stdout.splitlines() if line.startswith("{")]
@@ -287,10 +123,15 @@ def cpu_per_step(runs: int = CPU_RUNS) -> list[dict]:
 def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> dict:
     d1 = pingpong_detail(round_trips)
     pp1 = d1["round_trips_per_s"]
-    runs = {0: [], 20: [], "real": []}
+    runs = {0: [], 20: [], "real": [], "monitor": []}
     for _ in range(repeats):  # alternating: this machine's load drifts
         for prio in runs:
-            runs[prio].append(lockstep(duration, 0, real_rig=True) if prio == "real" else lockstep(duration, prio))
+            if prio == "real":
+                runs[prio].append(lockstep(duration, 0, real_rig=True))
+            elif prio == "monitor":
+                runs[prio].append(lockstep(duration, 0, monitor=True))
+            else:
+                runs[prio].append(lockstep(duration, prio))
     d2 = pingpong_detail(round_trips)
     pp2 = d2["round_trips_per_s"]
     paths = {"waitset": [], "events": [], "single": []}
@@ -304,6 +145,7 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
     normal = statistics.median(r["steps_per_s"] for r in runs[0])
     fifo = statistics.median(r["steps_per_s"] for r in runs[20])
     real = statistics.median(r["steps_per_s"] for r in runs["real"])
+    watched = statistics.median(r["steps_per_s"] for r in runs["monitor"])
     timers_p99 = max(timer["p99_us"], timer["plant_p99_us"])
     result = {
         "pingpong_round_trips_per_s": base,
@@ -311,6 +153,10 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         "lockstep_steps_per_s": normal,
         "lockstep_runs": [r["steps_per_s"] for r in runs[0]],
         "lockstep_to_pingpong_ratio": normal / base,
+        "lockstep_monitor_steps_per_s": watched,
+        "lockstep_monitor_runs": [r["steps_per_s"] for r in runs["monitor"]],
+        "lockstep_monitor_to_pingpong_ratio": watched / base,
+        "lockstep_monitor_goal_met": watched >= GOAL_PINGPONG_RATIO * base,
         "lockstep_fifo_steps_per_s": fifo,
         "lockstep_fifo_runs": [r["steps_per_s"] for r in runs[20]],
         "lockstep_fifo_scheduling": runs[20][-1]["scheduling"],
@@ -336,6 +182,10 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         ("lockstep, 3 processes, normal scheduling", f"{normal:,.0f}",
          f"steps/s, {normal / base:.2f} x ping-pong; runs {', '.join(f'{r:,.0f}' for r in result['lockstep_runs'])}"
          f" ({steps} steps each)"),
+        ("lockstep with the monitor (amb-rig's default)", f"{watched:,.0f}",
+         f"steps/s, {watched / base:.2f} x ping-pong (goal >= {GOAL_PINGPONG_RATIO:g}: "
+         f"{'met' if result['lockstep_monitor_goal_met'] else 'MISSED'}); runs "
+         f"{', '.join(f'{r:,.0f}' for r in result['lockstep_monitor_runs'])}"),
         ("lockstep, 3 processes, --rt-priority 20", f"{fifo:,.0f}",
          f"steps/s, {fifo / base:.2f} x ping-pong; runs {', '.join(f'{r:,.0f}' for r in result['lockstep_fifo_runs'])}"
          f"; {result['lockstep_fifo_scheduling']}"),
@@ -367,7 +217,12 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
     record("ping-pong, nodes' wait-set path (executor trial)", paths["waitset"], "round trips/s")
     record_ratio("ping-pong, EventsExecutor callbacks / wait-set path", paths["events"], paths["waitset"])
     record_ratio("ping-pong, SingleThreadedExecutor callbacks / wait-set path", paths["single"], paths["waitset"])
-    record_ratio("lockstep (normal) / ping-pong", result["lockstep_runs"], [base] * len(result["lockstep_runs"]))
+    record_ratio("lockstep (normal, --no-monitor) / ping-pong", result["lockstep_runs"],
+                 [base] * len(result["lockstep_runs"]))  # fmt: skip
+    record("lockstep with the monitor (amb-rig's default), normal scheduling", result["lockstep_monitor_runs"],
+           "steps/s")  # fmt: skip
+    record_ratio("lockstep with the monitor / ping-pong", result["lockstep_monitor_runs"],
+                 [base] * len(result["lockstep_monitor_runs"]), goal=f">= {GOAL_PINGPONG_RATIO:g}x")  # fmt: skip
     record("realtime 1 kHz timer period error p99, controller", timer["p99_us"], "us", goal="< 100")
     record("realtime 1 kHz timer period error p99, plant", timer["plant_p99_us"], "us", goal="< 100")
     record("realtime 1 kHz sample-triggered controller, update-period error p99", sample["p99_us"], "us")
@@ -415,9 +270,6 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
 
 
 if __name__ == "__main__":
-    if len(sys.argv) > 1 and sys.argv[1] == "--pingpong-side":
-        _pingpong_side(sys.argv[2], sys.argv[3], int(sys.argv[4]), sys.argv[5])
-        sys.exit(0)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=2.0, help="simulated seconds of the lockstep run")
     ap.add_argument("--round-trips", type=int, default=5000)
