@@ -93,3 +93,18 @@ def test_continuous_floquet_and_chart_on_full_model(capsys, tmp_path, kind, amp,
     reduced_cfg = load_config(paper_config_path())  # modal_cutoff 5000: this point tells the two apart
     reduced = floquet(periodic_system(closed_loop(build_structure(reduced_cfg), reduced_cfg), motion, cfg.spin_rad_s))
     assert abs(reduced.max_abs - ref) > 2e-6
+
+
+@pytest.mark.parametrize("controller", ["continuous", "sampled"])
+def test_chart_names_the_model_it_analysed(capsys, tmp_path, controller):
+    """The paper config's modal_cutoff serves the digital chart only: the JSON and the PNG title say which model."""
+    data = cli_json(capsys, "chart", "--config", PAPER, "--controller", controller, "--motion", "pitch",
+                    "--amplitude", "0.1:0.2:2", "--frequency", "20:21:2", "--workers", "1", "--no-cache",
+                    "--out", str(tmp_path / "c.png"), "--json")  # fmt: skip
+    n_modes = build_structure(load_config(paper_config_path())).n
+    full = build_structure(load_config(paper_config_path(), ["modal_cutoff=null"])).n
+    assert n_modes < full  # the cutoff really reduces the model
+    if controller == "sampled":
+        assert f"modal cutoff 5000 rad/s ({n_modes} modes)" in data["model"]
+    else:
+        assert data["model"].endswith("full FE")

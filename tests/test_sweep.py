@@ -51,6 +51,7 @@ def test_dataset_is_labelled_and_matches_single_points(tongue):
     ds = xr.open_dataset(tongue / "sw" / "sweep.nc", engine="scipy")
     assert list(ds.max_abs_multiplier.dims) == ["spin_speed_rpm", "omega_rad_s", "amplitude_rad"]
     assert ds.attrs["schema_version"] == 1
+    assert ds.attrs["model"].endswith("full FE")  # the continuous sweep's model: the paper's modal_cutoff not used
     assert np.allclose(ds.spin_speed_rpm.values, [900, 1000]) and np.allclose(ds.amplitude_rad.values, [0.3, 0.4])
     v = float(ds.max_abs_multiplier.sel(spin_speed_rpm=1000, omega_rad_s=15.7, amplitude_rad=0.4, method="nearest"))
     assert abs(v - rho_floquet(15.7)) < 1e-6

@@ -246,7 +246,7 @@ def _aperiodic(s: Setup, ps, motion: BaseMotion, args):
 def run_chart(args):
     from .chart_cli import run_chart as chart_verb
 
-    return chart_verb(args, setup(args), describe)
+    return chart_verb(args, setup(args, digital=args.controller == "sampled"), describe)
 
 
 def run_sweep(args):

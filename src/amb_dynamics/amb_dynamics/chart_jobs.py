@@ -56,16 +56,21 @@ class ChartSpec:
         return cache_key(CACHE_VERSION, to_dict(self.cfg), self.kind, self.controller, self.delay_samples, omegas, amps)
 
 
+def analysed_config(spec: ChartSpec) -> RotorConfig:
+    """The config whose structure the chart analyses: ``modal_cutoff`` serves the digital loop only, the
+    continuous analyses run on the full FE model."""
+    return spec.cfg if spec.controller == "sampled" else dataclasses.replace(spec.cfg, modal_cutoff=None)
+
+
 def _built(spec: ChartSpec):
     k = pickle.dumps(spec)
     hit = _MEMO.get(k)
     if hit is None:
-        if spec.controller == "sampled":  # modal_cutoff serves the digital loop only
-            model = build_structure(spec.cfg)
-            hit = SampledLoop(model, spec.cfg, delay_samples=spec.delay_samples, forcing=False)
-        else:  # the continuous analyses run on the full FE model
-            full = dataclasses.replace(spec.cfg, modal_cutoff=None)
-            hit = closed_loop(build_structure(full), full)
+        cfg = analysed_config(spec)
+        if spec.controller == "sampled":
+            hit = SampledLoop(build_structure(cfg), cfg, delay_samples=spec.delay_samples, forcing=False)
+        else:
+            hit = closed_loop(build_structure(cfg), cfg)
         _MEMO.clear()
         _MEMO[k] = hit
     return hit

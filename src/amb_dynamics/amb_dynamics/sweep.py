@@ -20,7 +20,7 @@ import numpy as np
 from . import plots
 from .chart import CHART_STEPS, _Row
 from .chart_cli import DEFAULT_CACHE, add_execution_args, check_execution
-from .chart_jobs import SCHEMA_VERSION, ChartSpec, _built, chart_chunk
+from .chart_jobs import SCHEMA_VERSION, ChartSpec, _built, analysed_config, chart_chunk
 from .config import load_config, to_dict
 from .dask_exec import ChunkRunner, cache_key
 from .digital_chart import digital_row
@@ -146,7 +146,7 @@ def run_sweep(args, describe) -> tuple[dict, str]:
     pngs = _slices(out, specs, combos, axes, omegas, amps, res["rho"].reshape(len(specs), omegas.size, amps.size))
     meta = {
         "schema_version": SCHEMA_VERSION,
-        "model": describe(specs[0].cfg, build_structure(specs[0].cfg)),
+        "model": describe(analysed_config(specs[0]), build_structure(analysed_config(specs[0]))),
         "motion": args.motion,
         "controller": args.controller,
         "axes": [k for k, _ in axes] + ["omega_rad_s", "amplitude_rad"],
