@@ -108,3 +108,11 @@ def test_chart_names_the_model_it_analysed(capsys, tmp_path, controller):
         assert f"modal cutoff 5000 rad/s ({n_modes} modes)" in data["model"]
     else:
         assert data["model"].endswith("full FE")
+
+
+def test_modes_name_the_digital_loops_model(capsys):
+    """modes lists the full FE model's modes and checks the digital loop on the model the rig steps."""
+    data = cli_json(capsys, "modes", "--config", PAPER, "--speed-rpm", "0", "--json")
+    assert data["model"].endswith("full FE")
+    n_modes = build_structure(load_config(paper_config_path())).n
+    assert data["digital_loop_model"].endswith(f"modal cutoff 5000 rad/s ({n_modes} modes)")

@@ -84,11 +84,15 @@ def motion_text(motion: BaseMotion) -> str:
 def run_modes(args):
     s = setup(args)
     results = [modes_at_speed(s.model, s.loop, v) for v in args.speed_rpm]
-    digital = digital_over_speeds(build_structure(s.cfg), s.cfg, args.speed_rpm)
-    data = {"model": describe(s.cfg, s.model), "speeds": [r.to_dict() for r in results]}
+    dmodel = build_structure(s.cfg)  # the digital loop as the rig runs it: modal_cutoff applies
+    digital = digital_over_speeds(dmodel, s.cfg, args.speed_rpm)
+    data = {"model": describe(s.cfg, s.model), "digital_loop_model": describe(s.cfg, dmodel),
+            "speeds": [r.to_dict() for r in results]}  # fmt: skip
     for d, dig in zip(data["speeds"], digital, strict=True):
         d["digital_loop"] = dig
     lines = [data["model"]]
+    if data["digital_loop_model"] != data["model"]:
+        lines.append(f"digital loop on {data['digital_loop_model']}")
     for r, dig in zip(results, digital, strict=True):
         lines.append(f"\n{r.speed_rpm:g} rpm   {digital_line(dig)}")
         lines.append(f"{r.speed_rpm:g} rpm   freq (rad/s)   freq (Hz)   damping   whirl     eigenvalue")
@@ -113,9 +117,12 @@ def run_campbell(args):
     t0 = time.perf_counter()
     results = campbell_data(s.model, s.loop, args.speeds)
     out = plots.campbell_figure(results, f"Campbell diagram: {describe(s.cfg, s.model)}", args.out, args.max_frequency)
-    digital = digital_over_speeds(build_structure(s.cfg), s.cfg, args.speeds)
+    dmodel = build_structure(s.cfg)  # the digital loop as the rig runs it: modal_cutoff applies
+    digital = digital_over_speeds(dmodel, s.cfg, args.speeds)
     data = {
         "png": str(out),
+        "model": describe(s.cfg, s.model),
+        "digital_loop_model": describe(s.cfg, dmodel),
         "speeds_rpm": args.speeds.tolist(),
         "seconds": time.perf_counter() - t0,
         "speeds": [r.to_dict() | {"digital_loop": dig} for r, dig in zip(results, digital, strict=True)],
@@ -130,6 +137,8 @@ def run_campbell(args):
         f"{len(bad)} of {len(digital)} speeds ({min(bad):g}-{max(bad):g} rpm; max|mu| per sample up to "
         f"{worst['spectral_radius_per_sample']:.6g})"
     )
+    if data["digital_loop_model"] != data["model"]:
+        verdict += f"\ndigital loop on {data['digital_loop_model']}"
     return data, f"Campbell diagram ({len(results)} speeds) written to {out}\n{verdict}"
 
 
