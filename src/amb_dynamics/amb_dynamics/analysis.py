@@ -81,12 +81,18 @@ def motion_text(motion: BaseMotion) -> str:
     return " + ".join(f"{h.axis} {h.amplitude:g} rad at {h.frequency:g} rad/s" for h in motion.harmonics)
 
 
+def digital_at_speeds(cfg: RotorConfig, speeds_rpm) -> tuple[list[dict], str]:
+    """The digital loop's verdict at rest per speed (preflight), on the model the rig steps (``modal_cutoff``
+    applies, unlike the modes' full FE model), and that model's description."""
+    model = build_structure(cfg)
+    return digital_over_speeds(model, cfg, speeds_rpm), describe(cfg, model)
+
+
 def run_modes(args):
     s = setup(args)
     results = [modes_at_speed(s.model, s.loop, v) for v in args.speed_rpm]
-    dmodel = build_structure(s.cfg)  # the digital loop as the rig runs it: modal_cutoff applies
-    digital = digital_over_speeds(dmodel, s.cfg, args.speed_rpm)
-    data = {"model": describe(s.cfg, s.model), "digital_loop_model": describe(s.cfg, dmodel),
+    digital, digital_model = digital_at_speeds(s.cfg, args.speed_rpm)
+    data = {"model": describe(s.cfg, s.model), "digital_loop_model": digital_model,
             "speeds": [r.to_dict() for r in results]}  # fmt: skip
     for d, dig in zip(data["speeds"], digital, strict=True):
         d["digital_loop"] = dig
@@ -117,12 +123,11 @@ def run_campbell(args):
     t0 = time.perf_counter()
     results = campbell_data(s.model, s.loop, args.speeds)
     out = plots.campbell_figure(results, f"Campbell diagram: {describe(s.cfg, s.model)}", args.out, args.max_frequency)
-    dmodel = build_structure(s.cfg)  # the digital loop as the rig runs it: modal_cutoff applies
-    digital = digital_over_speeds(dmodel, s.cfg, args.speeds)
+    digital, digital_model = digital_at_speeds(s.cfg, args.speeds)
     data = {
         "png": str(out),
         "model": describe(s.cfg, s.model),
-        "digital_loop_model": describe(s.cfg, dmodel),
+        "digital_loop_model": digital_model,
         "speeds_rpm": args.speeds.tolist(),
         "seconds": time.perf_counter() - t0,
         "speeds": [r.to_dict() | {"digital_loop": dig} for r, dig in zip(results, digital, strict=True)],

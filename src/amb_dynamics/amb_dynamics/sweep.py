@@ -144,9 +144,10 @@ def run_sweep(args, describe) -> tuple[dict, str]:
     out = args.out_dir
     out.mkdir(parents=True, exist_ok=True)
     pngs = _slices(out, specs, combos, axes, omegas, amps, res["rho"].reshape(len(specs), omegas.size, amps.size))
+    analysed = analysed_config(specs[0])  # every chart of a sweep has the same controller
     meta = {
         "schema_version": SCHEMA_VERSION,
-        "model": describe(analysed_config(specs[0]), build_structure(analysed_config(specs[0]))),
+        "model": describe(analysed, build_structure(analysed)),
         "motion": args.motion,
         "controller": args.controller,
         "axes": [k for k, _ in axes] + ["omega_rad_s", "amplitude_rad"],
