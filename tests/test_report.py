@@ -71,6 +71,14 @@ def test_model_report_renders_and_carries_the_analyses_numbers(tmp_path, venv_bi
         for axis, a in s["axes"].items():
             row = f"<td>{s['speed_rpm']:g}</td><td>{axis}</td><td class='num'>{a['peak_abs']:.4g}</td>"
             assert row in html, row
+    # the chart is the digital loop's by default, with the numbers of `amb-dynamics chart --controller sampled`
+    code = cli_dyn(["chart", "--config", str(paper_config_path()), "--controller", "sampled", "--motion", "pitch",
+                    "--amplitude", CHART[1], "--frequency", CHART[3], "--workers", "1", "--no-cache",
+                    "--out", str(tmp_path / "chart.png"), "--json"])  # fmt: skip
+    assert code == 0
+    chart = json.loads(capsys.readouterr().out)
+    assert (f"{chart['points']} points (pitch, the digital loop the rig runs, 5000 Hz, delay 0; error bound per "
+            f"point up to {chart['max_error_bound']:.2g}): {chart['unstable_points']} unstable.") in html  # fmt: skip
 
 
 @pytest.mark.ros

@@ -32,7 +32,12 @@ def add_parser(sub) -> None:
     p.add_argument("--chart-motion", choices=("roll", "pitch", "yaw"), default="pitch")
     p.add_argument("--chart-amplitude", type=_grid_text, default="0:0.4:9", help="lo:hi:n or a,b,c (rad)")
     p.add_argument("--chart-frequency", type=_grid_text, default="4:40:19", help="lo:hi:n or a,b,c (rad/s)")
-    p.add_argument("--chart-controller", choices=("continuous", "sampled"), default="continuous")
+    p.add_argument(
+        "--chart-controller",
+        choices=("continuous", "sampled"),
+        default="sampled",
+        help="sampled (default): the digital loop the rig runs; continuous: its continuous-time idealisation",
+    )
     p.add_argument("--resolution", type=float, default=0.5, help="the bag's injection: multisine spacing (Hz)")
     p.add_argument("--settle", type=float, default=2.0, help="the bag's injection: s of its start left out")
     p.add_argument("--out", default="out/report.html", help="the HTML file")

@@ -164,7 +164,12 @@ def _vibration(doc: dict) -> str:
 
 def _chart(doc: dict) -> str:
     c = doc["chart"]
-    text = f"{c['points']} points ({c['motion']}, {c['controller']} controller): {c['unstable_points']} unstable."
+    if c["controller"] == "sampled":
+        loop = (f"the digital loop the rig runs, {c['controller_rate_hz']:g} Hz, delay {c['delay_samples']}; "
+                f"error bound per point up to {c['max_error_bound']:.2g}")  # fmt: skip
+    else:
+        loop = "continuous controller"
+    text = f"{c['points']} points ({c['motion']}, {loop}): {c['unstable_points']} unstable."
     return _p(text, "warn" if c["unstable_points"] else "") + _figure(doc, f"Stability chart ({c['motion']})")
 
 
