@@ -70,10 +70,10 @@ class Ticker:
     called after every wake-up to drain messages) until ``spin_ns`` before the deadline, because the wait set's
     timed wait wakes up 50-100 us late; then in a plain sleep (``clock_nanosleep``: under SCHED_FIFO about 20 us
     late at the median, 20-60 us at p99 here) until ``poll_ns`` before it, and polls only that last stretch.
-    Polling the whole 200 us, as this did before, kept a SCHED_FIFO plant busy for 40 % of a 2 kHz period on top
-    of its step, close to the kernel's real-time throttling limit (95 % of each CPU-second), whose stall of all the
-    CPU's real-time threads dropped the rotor.  If the loop fell more than a whole period behind, the missed ticks
-    are skipped (counted) and the schedule stays aligned to the original start.
+    Polling the whole 200 us would keep a SCHED_FIFO node busy for 40 % of a 2 kHz period on top of its work,
+    near the kernel's real-time throttling limit (95 % of each CPU-second), beyond which every real-time thread
+    on the CPU stalls for the rest of the second.  If the loop fell more than a whole period behind, the missed
+    ticks are skipped (counted) and the schedule stays aligned to the original start.
     """
 
     def __init__(self, period_ns: int, spin_ns: int = 200_000, poll_ns: int = 50_000):

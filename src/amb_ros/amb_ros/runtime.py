@@ -66,8 +66,8 @@ def run_node(name: str, factory, args: list[str] | None = None) -> int:
         print(f"{name}: {exc}", file=sys.stderr)
         return EXIT_USAGE
     low_latency_dds()
-    # a crash inside the C++ libraries (a heap check's abort in Fast DDS's teardown was seen once in a few
-    # thousand runs) leaves the Python stack of every thread in the node's log instead of one line
+    # a crash inside the C++ libraries (a heap check's abort in Fast DDS's teardown was seen in a full test run)
+    # leaves the Python stack of every thread in the node's log instead of one line
     faulthandler.enable()
     import rclpy
     from rclpy.signals import SignalHandlerOptions
