@@ -22,7 +22,9 @@ from amb_dynamics.analysis_sensitivity import model_sensitivity
 from amb_dynamics.config import load_config, paper_config_path
 from amb_dynamics.errors import InputError
 from amb_dynamics.lqg import LqgWeights, lqg_controller
+from amb_dynamics.motion import BaseMotion
 from amb_dynamics.preflight import digital_at_rest
+from amb_dynamics.rig_loop import simulate_rig
 from amb_dynamics.sensitivity import sampled_plant_state_space
 from amb_dynamics.structure import build_structure
 
@@ -171,13 +173,17 @@ def test_its_sensitivity_peak_is_below_the_2khz_pd():
 @pytest.mark.parametrize("rpm", [1000.0, 3000.0])
 def test_a_kick_settles_on_the_lqg_controller_with_every_effect(rpm):
     """The rig's own stepping code with every nonlinear effect (bearing law, gravity, noise, runout, unbalance,
-    slew, touchdown) and the one sample of delay: a 50 um kick at AMB5 dies down without touchdown or saturation."""
+    slew, touchdown) and the one sample of delay: a 50 um kick at AMB5 dies down without touchdown or saturation.
+
+    The kick's own response is the kicked run less the same run without the kick (the noise is seeded, so both see
+    the same): at 3000 rpm the unbalance and noise response alone is larger than the kick."""
     cfg, run = _kicked(LQG, [f"spin_speed_rpm={rpm}"], 1.0)
     assert not run.contacts
+    calm = simulate_rig(build_structure(cfg), cfg, BaseMotion(), run.t.size - 1)
     n = round(0.2 * cfg.controller.rate_hz)
-    d = run.displacement - run.displacement[-n:].mean(axis=0)
+    d = run.displacement - calm.displacement
     env = np.array([np.abs(d[i : i + n]).max() for i in range(0, run.t.size - n, n)])
-    assert env[0] > 40e-6 and env[2:].max() < 0.5 * env[0]
+    assert env[0] > 40e-6 and env[2:].max() < 0.05 * env[0]  # 96 um, then 0.1-2 um after 0.4 s
     assert np.abs(run.displacement).max() < 0.3 * cfg.bearings.air_gap
     assert np.abs(run.i).max() < cfg.controller.current_limit  # never saturated: nothing for the observer to miss
 

@@ -2,32 +2,65 @@
 state space; then the amplifier limit and the optional one-sample delay (the order of
 :func:`amb_dynamics.control_law.discrete_controller`, whose linear form the analyses use).
 
-A linear stage starts at the steady state of its first input with its integrating modes at zero, the rule of the
-PID (``y_-1 = y_0``: no derivative kick, empty integrator), so that a state space equal to the PID runs as the PID.
+A linear stage starts at the steady state of its first input in its fast modes and at zero in its slow stable ones
+(:func:`start_map`): the rule of the PID (``y_-1 = y_0``: no derivative kick, empty integrator), so that a state
+space equal to the PID runs as the PID, and what an observer-based controller needs (its low-frequency weights are
+slow modes: preloading them from one noisy sample kicked the real rig's LQG by 0.3 mm).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg import schur, solve_sylvester
 
 from .amb import DiscretePID, DiscretePIDCoefficients
 from .config import RotorConfig
 from .control_law import discrete_filters, discrete_user, is_plain_pid
 from .state_space import StateSpace
 
+SLOW_MODE = 0.02  # |1 - lambda| below this: a mode slower than ~50 samples (integrators, low-frequency weights)
+
+
+def start_map(A: np.ndarray, B: np.ndarray, slow: float = SLOW_MODE) -> np.ndarray:
+    """x_0 = S y_0: the fixed point x = A x + B y_0 in the modes with |1 - lambda| >= ``slow``, zero in the slower
+    stable (or integrating) modes.
+
+    One sample cannot stand for the level a slow mode averages over (it carries the sensor noise and the runout of
+    one instant), so those start empty, as the PID's integrator does.  Unstable modes start at their fixed point
+    whatever their speed: started anywhere else they run away while the input is held (a realtime plant holds the
+    rotor until the loop keeps up).  Computed on an ordered real Schur form, the kept modes decoupled from the cut
+    ones by a Sylvester equation: no eigenvector basis, which a controller's non-normal A makes ill-conditioned.
+    """
+    n = A.shape[0]
+    if n == 0:
+        return np.zeros((0, B.shape[1]))
+
+    def kept(re, im):
+        lam = complex(re, im)
+        return abs(1.0 - lam) >= slow or abs(lam) > 1.0 + 1e-6  # an integrator's 1 may come out as 1 + 1e-16
+
+    T, Z, m = schur(A, output="real", sort=kept)
+    if m == 0:
+        return np.zeros_like(B)
+    Z1, Z2 = Z[:, :m], Z[:, m:]
+    B1 = Z1.T @ B
+    if m < n:  # T = S diag(T11, T22) S^-1 with S = [[I, X], [0, I]]: the kept modes' part of B
+        X = solve_sylvester(T[:m, :m], -T[m:, m:], -T[:m, m:])
+        B1 = B1 - X @ (Z2.T @ B)
+    return Z1 @ np.linalg.solve(np.eye(m) - T[:m, :m], B1)
+
 
 class LinearStage:
-    """x_k+1 = A x_k + B y_k, u_k = C x_k + D y_k, starting at x_0 = pinv(I - A) B y_0."""
+    """x_k+1 = A x_k + B y_k, u_k = C x_k + D y_k, starting at x_0 = :func:`start_map` (A, B) y_0."""
 
     def __init__(self, ss: StateSpace):
         self.A, self.B, self.C, self.D = ss.A, ss.B, ss.C, ss.D
-        n = ss.n_states
-        self.start = np.linalg.pinv(np.eye(n) - ss.A) @ ss.B if n else np.zeros((0, ss.B.shape[1]))
+        self.start = start_map(ss.A, ss.B)
         self.reset()
 
     @property
     def start_gain(self) -> np.ndarray:
-        """u_0 / y_0 of the start rule: the static gain with the integrating modes left out."""
+        """u_0 / y_0 of the start rule: the static gain with the slow stable modes left out."""
         return self.D + self.C @ self.start
 
     def reset(self) -> None:
