@@ -12,6 +12,7 @@ from amb_ros.diagnostics import WARN
 from amb_ros.loop import Ticker
 from amb_ros.runtime import RunFailed
 
+RATES_HOLD_S = 0.01  # realtime: longest extrapolation of the base rates past the latest IMU sample
 HOUSEKEEPING_EVERY = 64  # steps between diagnostics/service checks in lockstep (cheap, but not free)
 
 
@@ -78,13 +79,28 @@ def lockstep_timeout_message(node, k: int, have_base: bool, timeout: float) -> s
 
 
 def run_realtime(node) -> None:
-    """Wall-clock ticks: advance with the latest command and base rates, then publish y."""
+    """Wall-clock ticks: publish y at each tick; the step before it is computed as soon as its command is in.
+
+    The step over [t_k-1, t_k] needs the command that answers sample k-1-d.  When that command arrives before
+    tick k, the step is computed while waiting for the tick, and y_k goes out on time; otherwise it is computed at
+    the tick with what has arrived (held, or zero current), as a DAC updated at the tick would be.  The step's own
+    cost is then off the loop's critical path: y_k is not published a step's computation after t_k.
+    """
     ticker = Ticker(node.Ts_ns)
     end = time.monotonic() + node.p["duration_s"] if node.p["duration_s"] > 0 else None
     half = node.Ts_ns // 2
+    stepped = False  # the step before the coming tick is done
+
+    def early_step() -> None:
+        nonlocal stepped
+        node.drain()
+        if not stepped and node.samples_out and node.policy.on_time(node.samples_out):
+            step_to_tick(node)
+            stepped = True
+
     while not node.stop.is_set:
         skipped = ticker.skipped
-        k, lateness, period = ticker.wait_next(node.waiter, node.drain, node.stop)
+        k, lateness, period = ticker.wait_next(node.waiter, early_step, node.stop)
         if node.stop.is_set:
             node.finished = node.p["duration_s"] == 0  # an endless realtime run ends when it is stopped
             return
@@ -93,13 +109,9 @@ def run_realtime(node) -> None:
         if period is not None:
             node.period_error.add(abs(period - node.Ts_ns) * 1e-9)
         node.k_now = k
-        # the command's age counts the samples this plant published, so that a plant that falls behind (skipped
-        # ticks, reported as missed deadlines) does not blame the controller; before the controller's first
-        # command the rotor stays at its start state
-        current = node.policy.current(node.samples_out) if node.samples_out else None
-        if current is not None:
-            om, dom = node.latest_rates
-            node.advance(np.concatenate([om, dom]), current)
+        if not stepped:
+            step_to_tick(node)
+        stepped = False
         node.publish_outputs(k, node.get_clock().now().nanoseconds)
         if end is not None and time.monotonic() >= end:
             node.finished = True
@@ -108,6 +120,26 @@ def run_realtime(node) -> None:
             node.waiter.serve()
             if node.diag.due():
                 node.diag.publish(*node.status(), node.values())
+
+
+def step_to_tick(node) -> None:
+    """The step after the last published sample, with the command the policy gives for it.  The command's age
+    counts the samples this plant published, so that a plant that falls behind (skipped ticks, reported as missed
+    deadlines) does not blame the controller; before levitation starts the rotor stays at its start state."""
+    current = node.policy.current(node.samples_out) if node.samples_out else None
+    if current is not None:
+        node.advance(held_rates(node), current)
+
+
+def held_rates(node) -> np.ndarray:
+    """[Omega, dOmega/dt] at the start of the step after the last published sample: Omega extrapolated from the
+    latest IMU sample with the latest dOmega/dt (first-order hold: base_motion samples at rate_hz / imu_every), at
+    most ``RATES_HOLD_S`` ahead, so that a base_motion that stopped leaves the rates held rather than ramping."""
+    om, dom = node.latest_rates
+    if node.imu_at_ns is None:
+        return np.concatenate([om, dom])
+    ahead = min(max((node.sample_at_ns - node.imu_at_ns) * 1e-9, 0.0), RATES_HOLD_S)
+    return np.concatenate([om + ahead * dom, dom])
 
 
 def wait_connected(node) -> None:

@@ -166,6 +166,8 @@ class PlantNode(RigNode):
         self.after_end = 0  # well-formed commands taken after the loop ended (counted by the final drain)
         self.rates: dict[int, np.ndarray] = {}  # lockstep: step -> [Omega, dOmega]
         self.latest_rates = (np.zeros(3), np.zeros(3))
+        self.imu_at_ns: int | None = None  # realtime: when the latest Omega arrived (time.monotonic_ns)
+        self.sample_at_ns = 0  # realtime: when the last sample went out, the start of the next step (same clock)
         self.k_now = 0  # lockstep: the step being computed; realtime: the current tick
         self.sample_index: dict[int, int] = {}  # realtime: stamp of a published sample -> its index
         self.samples_out = 0  # realtime: samples published (a command's age counts them, not wall-clock ticks)
@@ -237,6 +239,7 @@ class PlantNode(RigNode):
         got = self.counters.decode(m.IMU, self.imu_decoder, raw)
         if got is not None:
             self.latest_rates = (got[1][4:7].copy(), self.latest_rates[1])
+            self.imu_at_ns = time.monotonic_ns()  # this host's clock: another host's stamps may be offset
 
     def on_acc(self, raw: bytes) -> None:
         """Realtime: the latest dOmega/dt."""
@@ -266,6 +269,7 @@ class PlantNode(RigNode):
         self.disp_pub.publish(self.disp_codec.encode(stamp_ns, self.sensor.measure(self.rig.measure(self.x))))
         if self.mode == "realtime":
             self.sample_index[stamp_ns] = self.samples_out
+            self.sample_at_ns = time.monotonic_ns()
             self.samples_out += 1
             self.sample_index.pop(stamp_ns - SAMPLE_MEMORY * self.Ts_ns, None)  # bounded memory (approximately)
             if len(self.sample_index) > 2 * SAMPLE_MEMORY:

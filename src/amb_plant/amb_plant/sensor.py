@@ -74,6 +74,15 @@ class CommandPolicy:
             else:
                 self.pending.append((answered_k, current))
 
+    def on_time(self, k: int) -> bool:
+        """True once the command that answers sample k - 1 - delay has arrived: the step after sample k - 1 can be
+        computed before its tick (``current(k)`` then returns that command)."""
+        due = k - 1 - self.delay
+        for answered, _ in self.pending:  # ascending
+            if answered >= due:
+                return answered == due
+        return False
+
     def current(self, k: int) -> np.ndarray | None:
         """Current to apply over the step after published sample k - 1: the newest command that answers sample
         k - 1 - delay or an earlier one.  None until levitation starts (``start_samples`` consecutive on-time

@@ -7,7 +7,8 @@ publishes  /base/rates (lockstep)       trajectory_msgs/JointTrajectory: every s
                                         velocities = dOmega/dt (base axes) - the plant's input (amb_ros.state_block)
 publishes  /base/imu                    sensor_msgs/Imu: orientation = base->inertial quaternion (x, y, z, w),
                                         angular_velocity = Omega in base axes (rad/s); stamp = t_k; lockstep: every
-                                        imu_every samples (default 5: 1 kHz at 5 kHz), realtime: every tick
+                                        imu_every samples (default 5: 1 kHz at 5 kHz), realtime as well (the
+                                        IMU's own rate; the plant holds the rates to first order in between)
 publishes  /base/angular_acceleration   geometry_msgs/Vector3Stamped: dOmega/dt in base axes (rad/s^2), as /base/imu
 publishes  /diagnostics                 samples published, clock messages received/rejected, lead
 subscribes /clock (lockstep)            rosgraph_msgs/Clock from the plant
@@ -17,8 +18,9 @@ Lockstep: the plant publishes /clock = t_k at step k; this node answers with the
 path), in whole blocks of /base/rates.  A /clock that goes backwards restarts the sequence there.
 Every base sample reaches the plant in blocks rather than as an Imu + Vector3Stamped pair per step: each reader
 of a per-step topic (the plant, a recorder) costs the lockstep loop a DDS delivery per message (``make bench``).
-Realtime: samples on a wall-clock ticker at rate_hz, t measured from the node's start, stamped with wall time;
-the plant takes /base/imu and /base/angular_acceleration (a rig uses the latest sample).
+Realtime: samples on a wall-clock ticker at rate_hz / imu_every, t measured from the node's start, stamped with
+wall time; the plant takes /base/imu and /base/angular_acceleration and extrapolates Omega with dOmega/dt to each
+step (a rig's IMU samples slower than its loop: at every tick this node cost a third of a core at 2 kHz).
 
 Profiles: none, roll, pitch, yaw (beta = A sin(w t)), combined (harmonics of the config's base_motion),
 recorded (CSV file, see amb_dynamics.recorded).
@@ -61,8 +63,9 @@ def specs() -> list[ParamSpec]:
         ParamSpec("recorded_smoothing", 0.0, "smoothing-spline lambda for recorded; 0 = automatic (GCV)", lo=0.0),
         ParamSpec("rates_block", 25, "lockstep: samples per /base/rates message (every sample is published)",
                   "samples", 1, 200),
-        ParamSpec("imu_every", 5, "lockstep: publish /base/imu and /base/angular_acceleration every N samples (the "
-                  "plant takes /base/rates; 5 at 5 kHz = 1 kHz)", "samples", 1, 10000),
+        ParamSpec("imu_every", 5, "publish /base/imu and /base/angular_acceleration every N samples (lockstep: the "
+                  "plant takes /base/rates; realtime: the IMU's rate, rate_hz / N, 5 at 2 kHz = 400 Hz)", "samples",
+                  1, 10000),
         ParamSpec("min_rates_subscribers", 1, "lockstep: readers of /base/rates required before the first sample "
                   "(amb-rig: plant, recorder), so that every reader gets every sample", "", 0, 100),
         ParamSpec("min_imu_subscribers", 0, "lockstep: readers of /base/imu required before the first sample "
@@ -121,7 +124,7 @@ class BaseMotionNode(RigNode):
         q, om, dom = self.source.sample(k)
         if self.rates is not None:
             self.publish_rates(self.rates.add(stamp_ns, np.concatenate([om, dom])))
-        if self.rates is None or k % self.p["imu_every"] == 0:
+        if self.rates is None or k % self.p["imu_every"] == 0:  # realtime: called every imu_every samples
             self.imu_pub.publish(self.imu_codec.encode(stamp_ns, np.concatenate([q, om])))
             self.acc_pub.publish(self.acc_codec.encode(stamp_ns, dom))
             self.counters.published[m.IMU] += 1
@@ -176,13 +179,14 @@ class BaseMotionNode(RigNode):
                 if self.clock_k >= 0:
                     self.answer_clock()
                 self.housekeeping()
-        else:
-            ticker = Ticker(self.Ts_ns)
+        else:  # the IMU's own rate: every imu_every samples (the plant holds the rates to first order between)
+            every = self.p["imu_every"]
+            ticker = Ticker(self.Ts_ns * every)
             while not self.stop.is_set:
                 k, _, _ = ticker.wait_next(self.waiter, lambda: None, self.stop)
                 if self.stop.is_set:
                     break
-                self.publish_sample(k, self.get_clock().now().nanoseconds)
+                self.publish_sample(k * every, self.get_clock().now().nanoseconds)
                 self.housekeeping()
             self.skipped = ticker.skipped
         if self.rates is not None:
