@@ -43,15 +43,15 @@ def test_final_reports_wait_for_every_diagnostics_reader(argv, readers):
     assert {p["min_diagnostics_readers"] for p in per.values()} == {readers}
 
 
-@pytest.mark.parametrize(("mode", "priority"), [("lockstep", "normal"), ("realtime", "idle")])
+@pytest.mark.parametrize(("mode", "priority"), [("lockstep", "normal"), ("realtime", "low")])
 def test_consumers_are_starved_only_beside_a_realtime_loop(tmp_path, mode, priority):
     args = parser().parse_args(["run", "--mode", mode, "--bag", str(tmp_path / "b")])
     _, per = node_parameters(args)
     assert per["monitor"]["priority"] == priority
     cmd = bag_process(args, tmp_path).cmd
     assert cmd[cmd.index("--priority") + 1] == priority
-    _, per = node_parameters(parser().parse_args(["run", "--param", "monitor:priority=low"]))
-    assert per["monitor"]["priority"] == "low"  # an explicit --param wins
+    _, per = node_parameters(parser().parse_args(["run", "--mode", "realtime", "--param", "monitor:priority=idle"]))
+    assert per["monitor"]["priority"] == "idle"  # an explicit --param wins
 
 
 @pytest.mark.ros

@@ -5,7 +5,7 @@ delay; ``SampledLoop``, forcing off; a nonlinear bearing law linearised at the l
 ``rig_loop.levitated_bearing``) on the config's base motion, per period of A(t): the value an engineer would
 look up in a chart before the run (``digital_floquet.estimate_point``: exact for T/Ts = p/r, else interpolated in
 T/Ts with a stated bound).  It is computed once, in a background thread started after the monitor has taken its
-scheduling (SCHED_IDLE by default: it only uses CPU the loop leaves), so the monitor starts estimating at once.
+scheduling (below the loop's: it only uses CPU the loop leaves), so the monitor starts estimating at once.
 
 The running estimate disagrees with the model when
 
