@@ -15,7 +15,8 @@
    the period error p50/p99/max of the wall-clock timers (the plant's sample clock, and the controller with
    ``trigger:=timer``) and missed deadlines; then the default sample-triggered controller, whose update period
    follows the samples' arrival (sample clock + DDS latency jitter) and its sample-to-command latency; then the
-   timers at 2 kHz, on the paper loop and on the full FE real rig with its 2 kHz controller (no modal cutoff).
+   timers at 2 kHz, on the paper loop and on the full FE real rig with its 2 kHz controller (no modal cutoff),
+   REAL_RIG_RUNS times: how many runs kept the rotor off its touchdown bearings, and their p99s.
    Goals: >= 2,000 lockstep steps/s; realtime p99 period error < 100 us.
 4. Executor trial: the same ping-pong driven by subscription callbacks of rclpy's EventsExecutor
    (rclpy.experimental) and of the standard SingleThreadedExecutor, against the nodes' own wait-set path,
@@ -46,6 +47,7 @@ BIN = Path(sys.executable).parent
 PAPER = ["--config", str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")]
 # the real rig's 2 kHz loop with one sample of computation delay, as a realtime loop has it
 RIG_2KHZ = Path(__file__).resolve().parents[1] / "config" / "seed_rotor_2khz_lqg.yaml"
+REAL_RIG_RUNS = 5  # realtime runs of the real rig at 2 kHz (each 5 s): how many keep the rotor up
 GOAL_STEPS_PER_S = 2000.0
 GOAL_P99_US = 100.0
 GOAL_PINGPONG_RATIO = 0.8  # lockstep steps/s over the same run's ping-pong round trips/s, monitor on
@@ -105,6 +107,7 @@ def realtime(trigger: str, rate_hz: int = 1000, duration: float = 5.0, real_rig:
         "plant_max_us": float(p["period error max (us)"]),
         "plant_missed_deadlines": int(p["missed deadlines"]),
         "errors": s["errors"],
+        "touchdown": p.get("first touchdown", ""),  # "t = ... s at node n": the rotor dropped
     }
     if trigger == "sample":
         out["latency_p99_us"] = float(c["sample-to-command latency p99 (us)"])
@@ -139,7 +142,9 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         for path in paths:
             paths[path].append(pingpong(round_trips, path))
     timer, sample, timer2 = realtime("timer"), realtime("sample"), realtime("timer", 2000)
-    rig2 = realtime("sample", 2000, real_rig=True)  # the LQG's delay is exact only when each sample is answered
+    # the LQG's delay is exact only when each sample is answered; several runs: a stall may drop the rotor
+    rigs2 = [realtime("sample", 2000, real_rig=True) for _ in range(REAL_RIG_RUNS)]
+    rig2 = sorted(rigs2, key=lambda r: r["p99_us"])[len(rigs2) // 2]  # the median run's details
     cpu = cpu_per_step()
     base = 0.5 * (pp1 + pp2)
     normal = statistics.median(r["steps_per_s"] for r in runs[0])
@@ -170,7 +175,7 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         "realtime_1khz_timer": timer,
         "realtime_1khz_sample": sample,
         "realtime_2khz_timer": timer2,
-        "realtime_2khz_real_rig": rig2,
+        "realtime_2khz_real_rig": rigs2,
         "realtime_goal_met": timers_p99 < GOAL_P99_US,
         "cpu_us_per_step": [c["us_per_step"] for c in cpu],
         "pingpong_cpu_us_per_round_trip": {side: [d[f"{side}_cpu_us"] for d in (d1, d2) if f"{side}_cpu_us" in d]
@@ -234,16 +239,18 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
                  f"{timer2['p50_us']:.0f}/{timer2['p99_us']:.0f}/{timer2['max_us']:.0f}",
                  f"plant {timer2['plant_p50_us']:.0f}/{timer2['plant_p99_us']:.0f}/{timer2['plant_max_us']:.0f}; "
                  f"{timer2['missed_deadlines']} + {timer2['plant_missed_deadlines']} missed deadlines"))  # fmt: skip
-    record(
-        "realtime 2 kHz period error p99, controller, real rig (seed_rotor_2khz_lqg.yaml)",
-        rig2["p99_us"],
-        "us",
-        goal="< 100",
-        note=f"{rig2['missed_deadlines']} missed deadlines, {rig2['samples_lost']} samples lost",
-    )
-    record("realtime 2 kHz period error p99, plant, real rig (seed_rotor_2khz_lqg.yaml)", rig2["plant_p99_us"], "us",
-           goal="< 100", note=f"{rig2['plant_missed_deadlines']} missed deadlines")  # fmt: skip
-    rows.append(("realtime 2 kHz, real rig (LQG, one sample of delay): controller, plant",
+    up = sum(not r["touchdown"] for r in rigs2)
+    record("realtime 2 kHz real rig (seed_rotor_2khz_lqg.yaml): runs that kept the rotor off its touchdown bearings",
+           up, f"of {len(rigs2)}", goal=f"{len(rigs2)}",
+           note="; ".join(f"run {i + 1}: {r['touchdown']}" for i, r in enumerate(rigs2) if r["touchdown"]))  # fmt: skip
+    record("realtime 2 kHz period error p99, controller, real rig (seed_rotor_2khz_lqg.yaml)",
+           [r["p99_us"] for r in rigs2], "us", goal="< 100",
+           note=f"median run: {rig2['missed_deadlines']} missed deadlines, "
+           f"{rig2['samples_lost']} samples lost")  # fmt: skip
+    record("realtime 2 kHz period error p99, plant, real rig (seed_rotor_2khz_lqg.yaml)",
+           [r["plant_p99_us"] for r in rigs2], "us", goal="< 100",
+           note=f"median run: {rig2['plant_missed_deadlines']} missed deadlines")  # fmt: skip
+    rows.append(("realtime 2 kHz, real rig (LQG, one sample of delay), median run: controller, plant",
                  f"{rig2['p50_us']:.0f}/{rig2['p99_us']:.0f}/{rig2['max_us']:.0f}",
                  f"plant {rig2['plant_p50_us']:.0f}/{rig2['plant_p99_us']:.0f}/{rig2['plant_max_us']:.0f}; "
                  f"{rig2['missed_deadlines']} + {rig2['plant_missed_deadlines']} missed deadlines; "
