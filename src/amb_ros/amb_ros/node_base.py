@@ -41,7 +41,14 @@ def common_specs() -> list[ParamSpec]:
             hi=1.0e6,
             config_key="controller.rate_hz",
         ),
-        ParamSpec("qos_depth", 1000, "history depth of the reliable lockstep topics", "samples", lo=1, hi=100000),
+        ParamSpec(
+            "qos_depth",
+            1000,
+            "history depth of the reliable lockstep topics (and of the monitor's realtime reader)",
+            "samples",
+            lo=1,
+            hi=100000,
+        ),
         ParamSpec(
             "rt_priority", 0, "SCHED_FIFO priority of every thread of the node (0 = normal scheduling)", "", 0, 99
         ),

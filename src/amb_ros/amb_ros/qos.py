@@ -42,6 +42,16 @@ def data_qos(mode: str, depth: int = LOCKSTEP_DEPTH) -> QoSProfile:
     return lockstep_qos(depth) if mode == "lockstep" else realtime_qos()
 
 
+def consumer_qos(mode: str, depth: int = LOCKSTEP_DEPTH) -> QoSProfile:
+    """A reader beside the loop that takes in batches (the monitor): in lockstep the data QoS; in realtime best
+    effort as offered, but with a ``depth``-deep history of its own, which holds the samples while the reader is
+    busy (a refit takes longer than the sensor-data profile's 5 messages last: 62 ms of state blocks at 2 kHz)."""
+    if mode == "lockstep":
+        return lockstep_qos(depth)
+    return QoSProfile(depth=depth, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.VOLATILE)  # fmt: skip
+
+
 def diagnostics_qos() -> QoSProfile:
     return reliable_qos(DIAGNOSTICS_DEPTH, DurabilityPolicy.VOLATILE)
 

@@ -46,7 +46,7 @@ from amb_ros.live_params import LiveParams, param_at_spec
 from amb_ros.loop import Waiter
 from amb_ros.node_base import RigNode
 from amb_ros.params import ParamSpec
-from amb_ros.qos import data_qos, latched_qos, reliable_qos
+from amb_ros.qos import consumer_qos, latched_qos, reliable_qos
 from amb_ros.runtime import exit_process, run_node
 from amb_ros.scheduling import PRIORITIES, consumer_priority
 
@@ -95,8 +95,8 @@ def specs() -> list[ParamSpec]:
         ParamSpec("publish_count", 8, "multipliers published per refit (largest first)", "", 0, 10000),
         ParamSpec("static_wait_s", D.static_wait, "no base rotation for this long: static base", "s", 0.0, 1e6),
         ParamSpec("static_period_s", D.static_period, "period used for a static base", "s", 1e-6, 1e6),
-        ParamSpec("batch_s", 0.02, "sleep between drains: fewer wake-ups, less CPU taken from the loop (the reliable "
-                  "1000-deep history holds the samples meanwhile)", "s", 0.0, 1.0),
+        ParamSpec("batch_s", 0.02, "sleep between drains: fewer wake-ups, less CPU taken from the loop (the "
+                  "qos_depth-deep history holds the samples meanwhile, in realtime too)", "s", 0.0, 1.0),
         ParamSpec("priority", "idle", "scheduling of every thread, DDS's included: idle (SCHED_IDLE: only CPU time "
                   "the loop leaves; a refit never preempts it), low (niceness +5) or normal", choices=PRIORITIES),
         ParamSpec("model_check", True, "compare the estimate with the config's model value (its digital loop on its "
@@ -137,7 +137,7 @@ class MonitorNode(RigNode):
             self.topic, self.data_in, data_type = m.DISPLACEMENT, JointStateInput(("position",)), JointState
         else:
             self.topic, self.data_in, data_type = m.STATE, StateBlockInput(), JointTrajectory
-        qos = data_qos(self.mode, p["qos_depth"])
+        qos = consumer_qos(self.mode, p["qos_depth"])
         self.data_sub = self.create_subscription(data_type, self.topic, self.on_data, qos, raw=True)
         subs = [self.data_sub]
         self.imu_sub = None
