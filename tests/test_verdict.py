@@ -77,6 +77,19 @@ def test_any_loss_in_lockstep_fails_and_monitor_loss_is_a_warning():
     assert "said stable, rho = 0.9988" in v.line
 
 
+def test_gaps_that_are_ticks_the_plant_skipped_do_not_withhold_the_verdict():
+    """A realtime plant that falls a tick behind skips it: the monitor's stamps then have a gap though it received
+    every sample the plant published (seen: 13 gaps, 10155 of 10155 samples).  A real loss still withholds."""
+    plant = {"published /amb/displacement": "10155", "skipped ticks": "13"}
+    mon = dict(STABLE_MON, **{"samples lost": "13", "samples": "10155"})
+    v = judge_verdict(_summary(plant, {}, mon), _args(mode="realtime"))
+    assert v.result == "stable" and v.line.startswith("verdict: stable: rho = 0.9988"), v.line
+    assert "13 gaps, ticks the plant skipped: it received all 10155 samples" in v.line
+    mon["samples"] = "10154"  # one sample did not arrive
+    v = judge_verdict(_summary(plant, {}, mon), _args(mode="realtime"))
+    assert v.result == "unknown" and "stability withheld: the monitor lost 13 samples" in v.line
+
+
 def test_node_failure_comes_first_and_no_plant_without_rig_fails():
     v = judge_verdict(_summary({}, {}, dict(STABLE_MON), errors=["controller exited unexpectedly (SIGKILL)"]), _args())
     assert v.exit_code == EXIT_FAILED and v.line == "verdict: FAILED: controller exited unexpectedly (SIGKILL)"

@@ -84,6 +84,7 @@ class Controller:
 class Monitor:
     unstable = Key("unstable", bool)
     samples_lost = Key("samples lost", int)
+    samples = Key("samples", int)
     verdict = Key("verdict", str, ())
     rho = Key("rho", float, ())
     rho_std = Key("rho std", float, ())
