@@ -17,6 +17,7 @@ import pytest
 
 from amb_dynamics.analysis_sensitivity import model_sensitivity
 from amb_dynamics.config import load_config
+from amb_dynamics.delay_margin import delay_margin, margin_text
 from amb_dynamics.motion import BaseMotion
 from amb_dynamics.preflight import digital_at_rest
 from amb_dynamics.rig_loop import simulate_rig
@@ -80,6 +81,11 @@ def test_amb_rig_runs_the_2khz_rig_in_lockstep(tmp_path, venv_bin, path):
     values = summary["nodes"]["controller"]["values"]
     assert values["samples lost"] == "0" and values["saturated samples"] == "0"
     assert max(p["air_gap_ratio"] for p in summary["peak_displacement"].values()) < 0.3
+    cfg = load_config(path)  # the summary's preflight line: the loop's verdict and its delay margin
+    assert summary["preflight"].startswith(
+        f"the digital loop at 2000 Hz (delay {cfg.controller.delay_samples}) is stable"
+    )
+    assert summary["preflight"].endswith(margin_text(delay_margin(build_structure(cfg), cfg)))
 
 
 def test_the_searchs_peak_estimate_is_the_sensitivity_commands_peak():

@@ -154,6 +154,7 @@ def main(argv: list[str] | None = None) -> None:
     try:
         cfg = load_config(args.config, args.set)  # validate before starting anything
         stable, line = rig_preflight(cfg)  # the digital loop at rest, before any node starts
+        args.preflight = line  # and its delay margin: in the summary
         if not stable and not args.force:
             refuse(f"amb-rig: refusing to run: {line} (or --force)")
         if not stable:
@@ -245,6 +246,7 @@ def run(args, cfg, lock) -> int:
         "duration_s": args.duration,
         "rate_hz": load_config(args.config, args.set).controller.rate_hz,
         "run_wall_s": round(time.monotonic() - t0, 3),
+        "preflight": getattr(args, "preflight", ""),
         "log_dir": str(log_dir),
         "interrupted": interrupted.signum is not None,
         "discovery": os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "")

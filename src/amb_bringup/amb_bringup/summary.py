@@ -68,6 +68,8 @@ def format_summary(s: dict) -> str:
     head = f"amb-rig run: {s.get('mode')}, {s.get('motion')}, {s.get('duration_s')} s at {s.get('rate_hz'):g} Hz"
     verdict = "INTERRUPTED" if s.get("interrupted") else ("OK" if s["ok"] else "FAILED")
     lines.append(f"{head}  [{verdict}]")
+    if s.get("preflight"):
+        lines.append(f"  preflight: {s['preflight']}")
     if "steps" in s:
         lines.append(
             f"  steps {s['steps']}   simulated {s.get('simulated_s') or 0:.6g} s   wall {s.get('wall_s') or 0:.3f} s"

@@ -13,6 +13,7 @@ import numpy as np
 from . import guards, plots
 from .analysis_sensitivity import run_sensitivity  # noqa: F401  (the `sensitivity` verb)
 from .config import RotorConfig, load_config
+from .delay_margin import delay_margin, margin_text
 from .digital_floquet import estimate_point, verdict_of
 from .errors import InputError
 from .floquet import aperiodic_exponents, floquet, hybrid_period, sampled_floquet
@@ -81,17 +82,22 @@ def motion_text(motion: BaseMotion) -> str:
     return " + ".join(f"{h.axis} {h.amplitude:g} rad at {h.frequency:g} rad/s" for h in motion.harmonics)
 
 
-def digital_at_speeds(cfg: RotorConfig, speeds_rpm) -> tuple[list[dict], str]:
+def digital_at_speeds(cfg: RotorConfig, speeds_rpm, margins: bool = False) -> tuple[list[dict], str]:
     """The digital loop's verdict at rest per speed (preflight), on the model the rig steps (``modal_cutoff``
-    applies, unlike the modes' full FE model), and that model's description."""
+    applies, unlike the modes' full FE model), and that model's description; ``margins``: with the delay margin of
+    each stable loop (``delay_margin``, :mod:`amb_dynamics.delay_margin`)."""
     model = build_structure(cfg)
-    return digital_over_speeds(model, cfg, speeds_rpm), describe(cfg, model)
+    digital = digital_over_speeds(model, cfg, speeds_rpm)
+    for d in digital if margins else ():
+        if d["stable"]:
+            d["delay_margin"] = delay_margin(model, cfg, d["spin_speed_rpm"])
+    return digital, describe(cfg, model)
 
 
 def run_modes(args):
     s = setup(args)
     results = [modes_at_speed(s.model, s.loop, v) for v in args.speed_rpm]
-    digital, digital_model = digital_at_speeds(s.cfg, args.speed_rpm)
+    digital, digital_model = digital_at_speeds(s.cfg, args.speed_rpm, margins=True)
     data = {"model": describe(s.cfg, s.model), "digital_loop_model": digital_model,
             "speeds": [r.to_dict() for r in results]}  # fmt: skip
     for d, dig in zip(data["speeds"], digital, strict=True):
@@ -153,7 +159,7 @@ def digital_line(d: dict) -> str:
     return (
         f"digital loop {d['rate_hz']:g} Hz, delay {d['delay_samples']}: {word}, max|mu| per sample "
         f"{d['spectral_radius_per_sample']:.7g} (margin {d['margin']:.3g}; slowest pole {d['growth_rate_1_s']:.4g} 1/s "
-        f"at {d['frequency_rad_s']:.5g} rad/s)"
+        f"at {d['frequency_rad_s']:.5g} rad/s)" + (f"; {margin_text(d['delay_margin'])}" if "delay_margin" in d else "")
     )
 
 

@@ -5,7 +5,7 @@ radius rho per sample decide (rho < 1: stable).  A nonlinear bearing law is line
 the levitated operating point (gravity and bias offsets: :func:`amb_dynamics.rig_loop.levitated_bearing`), the
 point the rig starts from and the sensitivity model and the monitor's model value use.  Used by ``modes`` and
 ``campbell`` (per spin speed) and by ``amb-rig run`` (refuses an unstable loop unless --force), which also gets a
-stable rate from a quick search.
+stable rate from a quick search, and the loop's delay margin (:mod:`amb_dynamics.delay_margin`) when it is stable.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import dataclasses
 import numpy as np
 
 from .config import RotorConfig
+from .delay_margin import delay_margin, margin_text
 from .rig_loop import levitated_bearing
 from .sampled import SampledLoop
 from .structure import StructuralModel, build_structure
@@ -75,7 +76,8 @@ def stable_rate(model: StructuralModel, cfg: RotorConfig) -> float | None:
 
 
 def rig_preflight(cfg: RotorConfig) -> tuple[bool, str]:
-    """(stable, one line) for ``amb-rig run``: the digital loop at rest at the config's rate and delay."""
+    """(stable, one line) for ``amb-rig run``: the digital loop at rest at the config's rate and delay, and when it
+    is stable its delay margin (how much later than its own delay a command may act)."""
     model = build_structure(cfg)
     d = digital_at_rest(model, cfg)
     head = (
@@ -83,7 +85,7 @@ def rig_preflight(cfg: RotorConfig) -> tuple[bool, str]:
         f"{'stable' if d['stable'] else 'UNSTABLE'} at rest: max|mu| per sample {d['spectral_radius_per_sample']:.6g}"
     )
     if d["stable"]:
-        return True, head
+        return True, f"{head}; {margin_text(delay_margin(model, cfg))}"
     rate = stable_rate(model, cfg)
     hint = (
         f"; stable at {rate:g} Hz (--set controller.rate_hz={rate:g})"
