@@ -128,3 +128,21 @@ def test_tainted_ok_marks_instead_of_failing():
     v = judge_verdict(_summary({"duplicate commands": "3"}, {}, dict(STABLE_MON)), _args("--tainted-ok"))
     assert v.exit_code == EXIT_OK and v.line.startswith("verdict: stable")
     assert "[TAINTED: 3 duplicate commands for one step" in v.line
+
+
+def test_held_commands_are_named_with_the_round_trip_against_the_deadline():
+    """A realtime run whose plant held late commands (under the loss limit) says how late they came back: the
+    round trip's percentiles against the deadline (delay_samples + 1) Ts; a run that held none says nothing."""
+    plant = {
+        "late commands held (samples)": "37",
+        "zero current (samples)": "0",
+        "command deadline (us)": "1000.0",
+        "round trip p50 (us)": "444.1",
+        "round trip p99 (us)": "880.4",
+        "round trip max (us)": "23808.8",
+    }
+    v = judge_verdict(_summary(plant, {}, dict(STABLE_MON)), _args(mode="realtime"))
+    assert v.exit_code == EXIT_OK and v.result == "stable"  # 37 of 25000 steps: under the 1 % limit
+    assert "37 late commands held: round trip p50/p99/max 444/880/23809 us against a deadline of 1000 us" in v.line
+    plant["late commands held (samples)"] = "0"
+    assert "late commands" not in judge_verdict(_summary(plant, {}, dict(STABLE_MON)), _args(mode="realtime")).line

@@ -132,6 +132,8 @@ def _result(summary: dict, args) -> tuple[str, str, list[str]]:
         if n := _f(values, per_topic("foreign", topic)):  # well-formed, another run token: not applied (docs/topics.md)
             warnings.append(f"the {who} rejected {n:.0f} {what} with another run token (another run or an intruder "
                             "on this ROS_DOMAIN_ID)")  # fmt: skip
+    if late := late_commands(plant):
+        warnings.append(late)
     if Monitor.model_mismatch.read(mon) is True:
         model_rho = mon.get(Monitor.model_rho.text)
         warnings.append(f"the stability estimate disagrees with the config's model (model rho {model_rho}): "
@@ -174,6 +176,20 @@ def _result(summary: dict, args) -> tuple[str, str, list[str]]:
     if ctl or plant:
         return "unknown", "no stability estimate (monitor off or not enough periods)" + peak_text, warnings
     return "unknown", "no result", warnings
+
+
+def late_commands(plant: dict) -> str | None:
+    """Realtime: held commands, with the round trip that made them late against the loop's deadline (a command
+    must be back (delay_samples + 1) periods after its sample); each held sample is a whole sample of extra delay,
+    beyond the loop's delay margin (the summary's preflight line)."""
+    held, deadline = _f(plant, Plant.late_commands_held), _f(plant, Plant.command_deadline)
+    if not held or not deadline:
+        return None
+    rtt = [_f(plant, k) for k in (Plant.round_trip_p50, Plant.round_trip_p99, Plant.round_trip_max)]
+    if None in rtt:
+        return f"{held:.0f} late commands held"
+    return (f"{held:.0f} late commands held: round trip p50/p99/max {rtt[0]:.0f}/{rtt[1]:.0f}/{rtt[2]:.0f} us "
+            f"against a deadline of {deadline:.0f} us after the sample")  # fmt: skip
 
 
 def _saturation(summary: dict, args) -> str | None:

@@ -397,7 +397,8 @@ class PlantNode(RigNode):
             out.update({Plant.late_commands_held.text: str(pol.held), Plant.zero_current.text: str(pol.zeroed),
                         Plant.command_losses.text: str(pol.losses), "command state": pol.state,
                         "missed deadlines": str(self.missed), "skipped ticks": str(self.skipped),
-                        "ticks before levitation": str(pol.waiting)})  # fmt: skip
+                        "ticks before levitation": str(pol.waiting),
+                        Plant.command_deadline.text: f"{(pol.delay + 1) * self.Ts * 1e6:.1f}"})  # fmt: skip
             out.update(self.period_error.summary("period error"))
             out["samples answered"] = str(self.sample_round_trip.count)
             out.update(self.sample_round_trip.summary("round trip"))

@@ -67,6 +67,10 @@ class Plant:
     late_commands_held = Key("late commands held (samples)", int, (REALTIME,))
     zero_current = Key("zero current (samples)", int, (REALTIME,))
     command_losses = Key("command losses", int, (REALTIME,))
+    command_deadline = Key("command deadline (us)", float, (REALTIME,))  # after its sample: (delay_samples + 1) Ts
+    round_trip_p50 = Key("round trip p50 (us)", float, ())  # sample to its command back at the plant (realtime)
+    round_trip_p99 = Key("round trip p99 (us)", float, ())
+    round_trip_max = Key("round trip max (us)", float, ())
 
 
 class Controller:
