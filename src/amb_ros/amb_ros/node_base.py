@@ -104,7 +104,17 @@ class RigNode(Node):
         self.diag = Diagnostics(
             self, self.p["diagnostics_period_s"], self.p["min_diagnostics_readers"], self.p["diagnostics_collector"]
         )
-        self.scheduling = "normal"
+        self.scheduling = "normal"  # SCHED_FIFO from enter_loop_scheduling(), once the node is built
+
+    def enter_loop_scheduling(self) -> None:
+        """SCHED_FIFO at ``rt_priority`` for every thread, from here on (0: normal scheduling stays).
+
+        Called by :func:`amb_ros.runtime.run_node` between building the node and its loop, not at the start of
+        the build: building a model and warming up a step (a second of CPU and more on a slow machine) at
+        SCHED_FIFO would run ahead of everything at normal priority, and of the other nodes' loops at the same
+        priority, which a realtime plant may already be ticking (it starts once its peers' topics are matched,
+        before their own builds end).  The DDS threads that exist by then are included (every thread of the
+        process); threads created later inherit the setting."""
         if self.p["rt_priority"] > 0:
             self.scheduling = set_realtime_priority(self.p["rt_priority"])
 

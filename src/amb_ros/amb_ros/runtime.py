@@ -86,6 +86,8 @@ def run_node(name: str, factory, args: list[str] | None = None) -> int:
         # everything allocated so far (imports, model, node) lives for the whole run: moved out of the
         # collector's reach, a full collection no longer walks it (tens of ms: a HIL loop's worst period)
         gc.freeze()
+        if hasattr(node, "enter_loop_scheduling"):  # the loop's nodes: SCHED_FIFO now that they are built
+            node.enter_loop_scheduling()
         code = node.run()
     except AmbError as exc:
         print(f"{name}: {exc}", file=sys.stderr)
