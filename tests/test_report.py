@@ -13,7 +13,9 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from amb_dynamics.config import paper_config_path
+from amb_dynamics.config import load_config, paper_config_path
+from amb_dynamics.delay_margin import delay_margin, margin_text
+from amb_dynamics.structure import build_structure
 from helpers import cli_dyn, run_rig
 
 CHART = ["--chart-amplitude", "0:0.4:3", "--chart-frequency", "10:30:3"]
@@ -63,6 +65,9 @@ def test_model_report_renders_and_carries_the_analyses_numbers(tmp_path, venv_bi
     attrs, shot = render(out, tmp_path)
     assert attrs.get("data-images") == str(figures) and attrs.get("data-broken") == "0"
     assert shot.shape[0] == 3000 and shot[..., :3].std() > 0.05  # a page, not a blank
+    # each speed's digital-loop line carries the loop's delay margin, as amb_dynamics.delay_margin gives it
+    cfg = load_config(paper_config_path())
+    assert f"; {margin_text(delay_margin(build_structure(cfg), cfg, 0.0))}." in html
     # the peaks in the table are those of `amb-dynamics sensitivity --controller sampled`
     code = cli_dyn(["sensitivity", "--config", str(paper_config_path()), "--controller", "sampled",
                     "--speed-rpm", "0", "1000", "--band", "1:500", "--json"])  # fmt: skip

@@ -9,6 +9,8 @@ import datetime as dt
 from html import escape
 from pathlib import Path
 
+from amb_dynamics.delay_margin import margin_text
+
 MODES_SHOWN = 10
 ZONE_COLOURS = {"A": "#cdeccd", "B": "#eef5c4", "C": "#fde2b8", "D": "#f8c4c0", "unstable": "#e39a94"}
 STYLE = """
@@ -94,7 +96,8 @@ def _modes(speed: dict) -> str:
     rows = [(m["frequency_hz"], m["damping_ratio"], m["whirl"]) for m in speed["modes"][:MODES_SHOWN]]
     line = (
         f"Digital loop at {d['rate_hz']:g} Hz (delay {d['delay_samples']}): {verdict}, max|mu| per sample "
-        f"{d['spectral_radius_per_sample']:.7g}."
+        f"{d['spectral_radius_per_sample']:.7g}"
+        + (f"; {margin_text(d['delay_margin'])}." if "delay_margin" in d else ".")
     )
     head = f"<h3>{speed['speed_rpm']:g} rpm</h3>" + _p(line, "" if d["stable"] else "warn")
     return head + _table(["frequency (Hz)", "damping ratio", "whirl"], rows)
