@@ -1,4 +1,5 @@
-"""The real rig's model-based 2 kHz controller (amb_dynamics.lqg, config/seed_rotor_2khz_lqg.yaml, issue 19).
+"""The real rig's model-based controllers (amb_dynamics.lqg, issue 19): config/seed_rotor_2khz_lqg.yaml (2 kHz, one
+sample of delay) and config/seed_rotor_1khz_lqg.yaml (1 kHz, no delay, the current's increment weighed).
 
 The design is checked against a second implementation (the Riccati equations solved by doubling and the textbook
 observer recursion run sample by sample); the shipped file against a fresh design; the
@@ -27,9 +28,14 @@ from amb_dynamics.preflight import digital_at_rest
 from amb_dynamics.rig_loop import simulate_rig
 from amb_dynamics.sensitivity import sampled_plant_state_space
 from amb_dynamics.structure import build_structure
+from helpers import run_rig
 
 REPO = Path(__file__).resolve().parents[1]
 LQG = REPO / "config" / "seed_rotor_2khz_lqg.yaml"
+LQG_1KHZ = REPO / "config" / "seed_rotor_1khz_lqg.yaml"
+# (file, rate, delay_samples, the design's weights beyond tools/lqg_design.py's defaults): its command line
+SHIPPED = [(LQG, 2000.0, 1, {}), (LQG_1KHZ, 1000.0, 0, {"increment_weight": 10.0, "sensor_noise_m": 5e-6})]
+IDS = ["2khz", "1khz"]
 sys.path.insert(0, str(REPO / "tools"))
 import lqg_design  # noqa: E402  (tools/ is not a package)
 
@@ -95,31 +101,81 @@ def test_the_controller_is_the_textbook_lqg_recursion_with_independently_compute
         assert np.allclose(u, u_ref, rtol=1e-6, atol=1e-9 * np.abs(u_ref).max()), (u, u_ref)
 
 
-def test_the_shipped_file_is_the_design_of_its_weights():
-    """config/seed_rotor_2khz_lqg.yaml is tools/lqg_design.py's output: a fresh design with the tool's default
-    weights gives the same controller (frequency response to 1e-6)."""
-    shipped = load_config(LQG)
+def test_the_increment_form_is_the_textbook_recursion_too():
+    """Without delay, with the current's increment weighed (increment_weight): on the paper rotor at 1 kHz, the
+    state [x; i_k-1; z] with the increment as input, gains from Riccati equations solved by doubling, then
+    x_k|k = x_k|k-1 + M (y_k - H x_k|k-1), du_k = -L x_k|k, i_k = (i_k-1)_k|k + du_k, x_k+1|k = F x_k|k + G du_k."""
+    cfg = load_config(paper_config_path(), ["controller.rate_hz=1000", "controller.delay_samples=0"])
+    model = build_structure(cfg)
+    w = LqgWeights(output_weight=1e9, low_frequency_weight=1e10, low_frequency_corner_hz=5.0, velocity_weight=10.0,
+                   input_noise_a=1.0, sensor_noise_m=1e-6, speed_noise=0.0, design_speed_rpm=cfg.spin_speed_rpm,
+                   delay_samples=0, increment_weight=7.0)  # fmt: skip
+    K = lqg_controller(model, cfg, w)
+    P = sampled_plant_state_space(model, cfg, 1e-3, cfg.spin_speed_rpm)
+    n, m = P.B.shape
+    a = np.exp(-2 * np.pi * 5.0 * 1e-3)
+    I, Z = np.eye(m), np.zeros((m, m))
+    F = np.block([[P.A, P.B, np.zeros((n, m))], [np.zeros((m, n)), I, Z], [(1 - a) * P.C, Z, a * I]])
+    G = np.vstack([P.B, I, Z])  # du acts at once on the plant and on the stored current
+    H = np.hstack([P.C, np.zeros((m, 2 * m))])
+    na = n + 2 * m
+    Q = w.output_weight * H.T @ H
+    vel = np.arange(model.n, 2 * model.n)
+    Q[vel, vel] += w.velocity_weight
+    Q[n : n + m, n : n + m] += I  # the current itself
+    Q[n + m :, n + m :] += w.low_frequency_weight * I
+    Q += 1e-14 * np.trace(Q) / na * np.eye(na)
+    R = 7.0 * I
+    X = _riccati_doubling(F, G, Q, R)
+    L = np.linalg.solve(R + G.T @ X @ G, G.T @ X @ F)
+    W = np.zeros((na, na))
+    W[:n, :n] = w.input_noise_a**2 * P.B @ P.B.T
+    W += 1e-24 * np.eye(na)
+    V = w.sensor_noise_m**2 * I
+    Y = _riccati_doubling(F.T, H.T, W, V)
+    M = Y @ H.T @ np.linalg.inv(H @ Y @ H.T + V)
+    rng = np.random.default_rng(4)
+    x_pred, xc = np.zeros(na), np.zeros(na)
+    for y in 1e-5 * rng.standard_normal((200, m)):
+        x_f = x_pred + M @ (y - H @ x_pred)
+        du = -L @ x_f
+        u_ref = x_f[n : n + m] + du
+        x_pred = F @ x_f + G @ du
+        u = K.C @ xc + K.D @ y
+        xc = K.A @ xc + K.B @ y
+        assert np.allclose(u, u_ref, rtol=1e-6, atol=1e-9 * np.abs(u_ref).max()), (u, u_ref)
+
+
+@pytest.mark.parametrize("path, rate, delay, weights", SHIPPED, ids=IDS)
+def test_the_shipped_file_is_the_design_of_its_weights(path, rate, delay, weights):
+    """Each shipped file is tools/lqg_design.py's output: a fresh design with the tool's default weights and the
+    file's rate, delay and own weights gives the same controller (frequency response to 1e-6)."""
+    shipped = load_config(path)
+    assert (shipped.controller.rate_hz, shipped.controller.delay_samples) == (rate, delay)
     A, B, C, D = shipped.controller.state_space.matrices()
-    cfg = load_config(REPO / "config" / "seed_rotor.yaml", ["controller.rate_hz=2000", "controller.delay_samples=1"])
-    K = lqg_controller(build_structure(cfg), cfg, LqgWeights(**lqg_design.WEIGHTS))
-    for f in (1.0, 17.0, 120.0, 480.0, 950.0):
-        z = np.exp(2j * np.pi * f / 2000.0)
+    cfg = load_config(REPO / "config" / "seed_rotor.yaml", [f"controller.rate_hz={rate}",
+                                                             f"controller.delay_samples={delay}"])  # fmt: skip
+    K = lqg_controller(build_structure(cfg), cfg, LqgWeights(**{**lqg_design.WEIGHTS, **weights},
+                                                              delay_samples=delay))  # fmt: skip
+    for f in (1.0, 17.0, 120.0, 0.24 * rate, 0.475 * rate):
+        z = np.exp(2j * np.pi * f / rate)
         H1 = C @ np.linalg.solve(z * np.eye(len(A)) - A, B) + D
         H2 = K.C @ np.linalg.solve(z * np.eye(K.A.shape[0]) - K.A, K.B) + K.D
         assert np.abs(H1 - H2).max() <= 1e-6 * np.abs(H2).max(), f
 
 
+@pytest.mark.parametrize("path, rate, delay, weights", SHIPPED, ids=IDS)
 @pytest.mark.parametrize("variant", VARIANTS, ids=lambda v: v[0] if v else "nominal")
-def test_the_lqg_loop_is_stable_over_the_speed_range_and_the_perturbed_plants(variant):
+def test_the_lqg_loop_is_stable_over_the_speed_range_and_the_perturbed_plants(variant, path, rate, delay, weights):
     """The step map of the loop about the levitated operating point (amb-rig's preflight, gravity and bias offsets
     on the nonlinear law: the point the rig runs at) from 0 to 3000 rpm every 250 rpm, and the design tool's own
-    check (controller_search.judge) on the same plants."""
+    check (controller_search.judge) on the same plants; its sensitivity peak stays below 45 (zone D: above 5)."""
     for rpm in np.arange(0.0, 3001.0, 250.0):
-        cfg = load_config(LQG, [*variant, f"spin_speed_rpm={rpm}"])
+        cfg = load_config(path, [*variant, f"spin_speed_rpm={rpm}"])
         d = digital_at_rest(build_structure(cfg), cfg)
-        assert d["rate_hz"] == 2000.0 and d["delay_samples"] == 1 and d["stable"], (variant, rpm, d)
-    radius, _ = controller_search.judge([], np.arange(0.0, 3001.0, 250.0), [variant], path=LQG)
-    assert radius < 1.0 - 1e-6, (variant, radius)
+        assert d["rate_hz"] == rate and d["delay_samples"] == delay and d["stable"], (variant, rpm, d)
+    radius, peak = controller_search.judge([], np.arange(0.0, 3001.0, 250.0), [variant], path=path)
+    assert radius < 1.0 - 1e-6 and peak < 45.0, (variant, radius, peak)
 
 
 def test_the_preflight_linearises_the_bearing_where_the_rotor_rests():
@@ -148,10 +204,12 @@ def test_the_preflight_linearises_the_bearing_where_the_rotor_rests():
     assert abs(np.angle(w[k])) / (2 * np.pi * Ts) == pytest.approx(114.0, abs=3.0)
 
 
-def test_the_design_needs_the_delay_it_was_made_for():
-    """Without its sample of delay (a loop whose commands act at once) the same controller is unstable: the
-    realtime plant must apply each command one sample late, not whenever it arrives (amb_plant.sensor)."""
-    cfg = load_config(LQG, ["controller.delay_samples=0"])
+@pytest.mark.parametrize("path, rate, delay, weights", SHIPPED, ids=IDS)
+def test_the_design_needs_the_delay_it_was_made_for(path, rate, delay, weights):
+    """With the other delay the same controller is unstable (the 2 kHz one without its sample of delay, the 1 kHz
+    one with a sample): the realtime plant applies each command exactly as delay_samples says, not whenever it
+    arrives (amb_plant.sensor)."""
+    cfg = load_config(path, [f"controller.delay_samples={1 - delay}"])
     assert not digital_at_rest(build_structure(cfg), cfg)["stable"]
 
 
@@ -170,14 +228,15 @@ def test_its_sensitivity_peak_is_below_the_2khz_pd():
     assert peaks[LQG] < 0.75 * peaks[RIG_2KHZ], peaks
 
 
+@pytest.mark.parametrize("path", [LQG, LQG_1KHZ], ids=IDS)
 @pytest.mark.parametrize("rpm", [1000.0, 3000.0])
-def test_a_kick_settles_on_the_lqg_controller_with_every_effect(rpm):
+def test_a_kick_settles_on_the_lqg_controller_with_every_effect(rpm, path):
     """The rig's own stepping code with every nonlinear effect (bearing law, gravity, noise, runout, unbalance,
     slew, touchdown) and the one sample of delay: a 50 um kick at AMB5 dies down without touchdown or saturation.
 
     The kick's own response is the kicked run less the same run without the kick (the noise is seeded, so both see
     the same): at 3000 rpm the unbalance and noise response alone is larger than the kick."""
-    cfg, run = _kicked(LQG, [f"spin_speed_rpm={rpm}"], 1.0)
+    cfg, run = _kicked(path, [f"spin_speed_rpm={rpm}"], 1.0)
     assert not run.contacts
     calm = simulate_rig(build_structure(cfg), cfg, BaseMotion(), run.t.size - 1)
     n = round(0.2 * cfg.controller.rate_hz)
@@ -188,9 +247,27 @@ def test_a_kick_settles_on_the_lqg_controller_with_every_effect(rpm):
     assert np.abs(run.i).max() < cfg.controller.current_limit  # never saturated: nothing for the observer to miss
 
 
+def test_amb_rig_runs_the_1khz_lqg_in_lockstep_and_states_its_delay_margin(tmp_path, venv_bin):
+    """The 1 kHz file runs as it is (the full FE plant, no modal cutoff) and the summary's preflight line states
+    the loop stable with the delay margin amb_dynamics.delay_margin gives."""
+    from amb_dynamics.delay_margin import delay_margin, margin_text
+
+    code, summary, text = run_rig(tmp_path, venv_bin, ["--config", str(LQG_1KHZ), "--duration", "1"])
+    assert code == 0 and summary["ok"], text
+    assert summary["rate_hz"] == 1000 and summary["steps"] == 1000
+    values = summary["nodes"]["controller"]["values"]
+    assert values["samples lost"] == "0" and values["saturated samples"] == "0"
+    assert max(p["air_gap_ratio"] for p in summary["peak_displacement"].values()) < 0.3
+    cfg = load_config(LQG_1KHZ)
+    assert "(delay 0) is stable" in summary["preflight"]
+    assert summary["preflight"].endswith(margin_text(delay_margin(build_structure(cfg), cfg)))
+
+
 def test_bad_weights_are_one_clear_error():
     good = dict(lqg_design.WEIGHTS)
     with pytest.raises(InputError, match="sensor_noise_m"):
         LqgWeights(**{**good, "sensor_noise_m": float("nan")})
     with pytest.raises(InputError, match="delay_samples"):
         LqgWeights(**good, delay_samples=2)
+    with pytest.raises(InputError, match="increment_weight needs delay_samples 0"):
+        LqgWeights(**good, increment_weight=1.0)  # delay_samples 1 by default

@@ -61,7 +61,8 @@ def rotor_file(base: Path, out: Path, rate: float, K, w: LqgWeights, argv: list[
         f"# LQG on the sampled plant at {w.design_speed_rpm:g} rpm (amb_dynamics/lqg.py, docs/real-rig.md).",
         f"# Weights: output {w.output_weight:.5g} A^2/m^2, below {w.low_frequency_corner_hz:g} Hz "
         f"{w.low_frequency_weight:.5g} A^2/m^2, velocity {w.velocity_weight:.5g} A^2 s^2/m^2;",
-        f"# noises: input {w.input_noise_a:.5g} A, sensor {w.sensor_noise_m:.5g} m, speed {w.speed_noise:.5g}.",
+        f"# noises: input {w.input_noise_a:.5g} A, sensor {w.sensor_noise_m:.5g} m, speed {w.speed_noise:.5g}"
+        + (f"; current increment weight {w.increment_weight:.5g}." if w.increment_weight else "."),
         f"base: {os.path.relpath(base, out.parent)}",
         "controller:",
         f"  rate_hz: {rate:g}",
@@ -81,6 +82,8 @@ def main() -> None:
     ap.add_argument("--rate", type=float, default=2000.0, help="controller rate (Hz)")
     ap.add_argument("--design-speed", type=float, default=1500.0, help="spin speed of the design model (rpm)")
     ap.add_argument("--delay-samples", type=int, choices=(0, 1), default=1, help="the loop's computation delay")
+    ap.add_argument("--increment-weight", type=float, default=0.0,
+                    help="weight of the current's increment per sample (needs --delay-samples 0; 0: none)")  # fmt: skip
     for key, value in WEIGHTS.items():
         ap.add_argument("--" + key.replace("_", "-"), type=float, default=value)
     ap.add_argument("--out", type=Path, default=ROOT / "config/seed_rotor_2khz_lqg.yaml")
@@ -91,7 +94,8 @@ def main() -> None:
             args.config, [f"controller.rate_hz={args.rate}", f"controller.delay_samples={args.delay_samples}"]
         )
         weights = {k: getattr(args, k) for k in WEIGHTS}
-        w = LqgWeights(**weights, design_speed_rpm=args.design_speed, delay_samples=args.delay_samples)
+        w = LqgWeights(**weights, design_speed_rpm=args.design_speed, delay_samples=args.delay_samples,
+                       increment_weight=args.increment_weight)  # fmt: skip
         K = lqg_controller(build_structure(cfg), cfg, w)
     except AmbError as exc:
         sys.exit(f"lqg_design: {exc}")

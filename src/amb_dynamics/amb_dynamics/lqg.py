@@ -18,6 +18,11 @@ a large gain at high frequency: xa = [x; i_k-1; z].
 The controller (x_c = xa_k|k-1, input y_k, output the current for the next sample) is returned as a discrete
 state space to be run with ``controller.delay_samples: 1``; ``tools/lqg_design.py`` writes it into a rotor file
 and checks it on perturbed plants.
+
+Without delay the design may weigh the current's increment instead of the current (``increment_weight`` r_d > 0):
+xa = [x; i_k-1; z], input du_k = i_k - i_k-1, cost ... + |i_k-1|^2 + r_d |du_k|^2.  A real amplifier slews (the
+coil's voltage limit), and a controller that asks for large steps each sample saturates it: at 1 kHz the
+plain design did (docs/real-rig.md).  The controller's output is then i_k = i_k-1|k + du_k.
 """
 
 from __future__ import annotations
@@ -48,6 +53,7 @@ class LqgWeights:
     speed_noise: float  # q_Omega: weight of the speed-dependent part of the step matrix
     design_speed_rpm: float = 1500.0
     delay_samples: int = 1
+    increment_weight: float = 0.0  # r_d: weight of the current's increment u_k - u_k-1 (0: none; needs no delay)
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -56,20 +62,25 @@ class LqgWeights:
                 raise InputError(f"LQG weight {f.name} must be finite and >= 0 (got {v!r})")
         if self.delay_samples not in (0, 1):
             raise InputError(f"LQG delay_samples must be 0 or 1 (got {self.delay_samples!r})")
+        if self.increment_weight and self.delay_samples:
+            raise InputError("LQG increment_weight needs delay_samples 0 (the increment form stores the last current)")
 
 
-def design_plant(F: np.ndarray, G: np.ndarray, H: np.ndarray, delay: int, a: float):
+def design_plant(F: np.ndarray, G: np.ndarray, H: np.ndarray, delay: int, a: float, increment: bool = False):
     """(Fa, Ga, Ha): the plant with ``delay`` samples (0 or 1) of input delay and the low-pass z (pole a) of its
-    outputs as extra states, [x; i_k-1; z] (no i_k-1 without delay)."""
+    outputs as extra states, [x; i_k-1; z] (no i_k-1 without delay).  ``increment`` (no delay): [x; i_k-1; z]
+    with the increment i_k - i_k-1 as the input, i_k = i_k-1 + du_k acting at once."""
     n, m = G.shape
-    d = m if delay else 0
+    d = m if delay or increment else 0
     Fa = np.zeros((n + d + m, n + d + m))
     Fa[:n, :n] = F
     Ga = np.zeros((n + d + m, m))
-    if delay:
+    if delay or increment:
         Fa[:n, n : n + d] = G
         Ga[n : n + d] = np.eye(m)
-    else:
+    if increment:
+        Fa[n : n + d, n : n + d] = np.eye(m)
+    if not delay:
         Ga[:n] = G
     Fa[n + d :, :n] = (1.0 - a) * H
     Fa[n + d :, n + d :] = a * np.eye(m)
@@ -86,14 +97,17 @@ def lqg_controller(model: StructuralModel, cfg: RotorConfig, w: LqgWeights) -> S
     P = sampled_plant_state_space(model, at, Ts, w.design_speed_rpm)
     F, G, H = P.A, P.B, P.C
     a = float(np.exp(-2.0 * np.pi * w.low_frequency_corner_hz * Ts))
-    Fa, Ga, Ha = design_plant(F, G, H, w.delay_samples, a)
+    increment = w.increment_weight > 0
+    Fa, Ga, Ha = design_plant(F, G, H, w.delay_samples, a, increment)
     n, na, m = F.shape[0], Fa.shape[0], G.shape[1]
     Q = w.output_weight * Ha.T @ Ha
     vel = np.arange(model.n, 2 * model.n)  # the plant state is [q; q'; amplifier; sensor]
     Q[vel, vel] += w.velocity_weight
     Q[na - m :, na - m :] += w.low_frequency_weight * np.eye(m)
+    if increment:  # the current's own weight (1, as R below otherwise), a sample late; R weighs the increment
+        Q[n : n + m, n : n + m] += np.eye(m)
     Q += 1e-14 * np.trace(Q) / na * np.eye(na)  # positive definite: every state is weighted a little
-    R = np.eye(m)
+    R = (w.increment_weight if increment else 1.0) * np.eye(m)
     W = np.zeros((na, na))
     W[:n, :n] = w.input_noise_a**2 * G @ G.T
     for rpm in (0.0, max(cfg.max_speed_rpm or 0.0, w.design_speed_rpm)):  # the ends of the speed range
@@ -110,4 +124,8 @@ def lqg_controller(model: StructuralModel, cfg: RotorConfig, w: LqgWeights) -> S
     M = Y @ Ha.T @ np.linalg.inv(Ha @ Y @ Ha.T + V)
     closed = Fa - Ga @ L
     update = np.eye(na) - M @ Ha
-    return StateSpace(closed @ update, closed @ M, -L @ update, -L @ M, Ts)
+    out = -L  # the current from xa_k|k: -L xa, or with increments i_k-1 - L xa (i_k-1 is the controller's own)
+    if increment:
+        out = out.copy()
+        out[:, n : n + m] += np.eye(m)
+    return StateSpace(closed @ update, closed @ M, out @ update, out @ M, Ts)
