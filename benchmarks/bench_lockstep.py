@@ -15,8 +15,9 @@
    the period error p50/p99/max of the wall-clock timers (the plant's sample clock, and the controller with
    ``trigger:=timer``) and missed deadlines; then the default sample-triggered controller, whose update period
    follows the samples' arrival (sample clock + DDS latency jitter) and its sample-to-command latency; then the
-   timers at 2 kHz, on the paper loop and on the full FE real rig with its 2 kHz controller (no modal cutoff),
-   REAL_RIG_RUNS times: how many runs kept the rotor off its touchdown bearings, and their p99s.
+   timers at 2 kHz on the paper loop; then the full FE real rig (no modal cutoff) with its 2 kHz controller
+   (one sample of delay) and its 1 kHz controller (none), REAL_RIG_RUNS times each: how many runs kept the rotor
+   off its touchdown bearings, and their p99s.
    Goals: >= 2,000 lockstep steps/s; realtime p99 period error < 100 us.
 4. Executor trial: the same ping-pong driven by subscription callbacks of rclpy's EventsExecutor
    (rclpy.experimental) and of the standard SingleThreadedExecutor, against the nodes' own wait-set path,
@@ -45,9 +46,10 @@ from report import record, record_ratio
 BIN = Path(sys.executable).parent
 # the paper's loop: its plant is fast, so these figures measure DDS and the nodes (the goals were set for it)
 PAPER = ["--config", str(Path(__file__).resolve().parents[1] / "config" / "seed_paper.yaml")]
-# the real rig's 2 kHz loop with one sample of computation delay, as a realtime loop has it
-RIG_2KHZ = Path(__file__).resolve().parents[1] / "config" / "seed_rotor_2khz_lqg.yaml"
-REAL_RIG_RUNS = 5  # realtime runs of the real rig at 2 kHz (each 5 s): how many keep the rotor up
+# the real rig's realtime loops, the full FE plant: 2 kHz with one sample of computation delay, 1 kHz without
+REAL_RIG = {2000: Path(__file__).resolve().parents[1] / "config" / "seed_rotor_2khz_lqg.yaml",
+            1000: Path(__file__).resolve().parents[1] / "config" / "seed_rotor_1khz_lqg.yaml"}  # fmt: skip
+REAL_RIG_RUNS = 4  # realtime runs of the real rig per rate (each 5 s): how many keep the rotor up
 GOAL_STEPS_PER_S = 2000.0
 GOAL_P99_US = 100.0
 GOAL_PINGPONG_RATIO = 0.8  # lockstep steps/s over the same run's ping-pong round trips/s, monitor on
@@ -84,12 +86,11 @@ def lockstep(duration: float, rt_priority: int, real_rig: bool = False, monitor:
 def realtime(trigger: str, rate_hz: int = 1000, duration: float = 5.0, real_rig: bool = False) -> dict:
     # static base, centred rotor: the linear state stays zero whatever the timing (see tests/test_rig_realtime.py);
     # the paper loop with modal_cutoff 800 rad/s is stable at 1 and 2 kHz (amb-dynamics modes says so); real_rig:
-    # the full FE real rig with its 2 kHz controller for one sample of delay (seed_rotor_2khz_lqg.yaml), every
-    # effect on
+    # the full FE real rig with its controller for rate_hz (REAL_RIG), every effect on
     args = ["--mode", "realtime", "--duration", str(duration), "--motion", "none", "--param",
             f"controller:trigger={trigger}"]  # fmt: skip
     if real_rig:
-        s = rig(args, require_ok=False, config=["--config", str(RIG_2KHZ)])
+        s = rig(args, require_ok=False, config=["--config", str(REAL_RIG[rate_hz])])
     else:
         s = rig([*args, "--set", f"controller.rate_hz={rate_hz}", "--set", "modal_cutoff=800"], require_ok=False)
     c, p = s["nodes"]["controller"]["values"], s["nodes"]["plant"]["values"]
@@ -112,6 +113,27 @@ def realtime(trigger: str, rate_hz: int = 1000, duration: float = 5.0, real_rig:
     if trigger == "sample":
         out["latency_p99_us"] = float(c["sample-to-command latency p99 (us)"])
     return out
+
+
+def record_real_rig(rate: int, runs: list[dict]) -> tuple[str, str, str]:
+    """The figures of the real rig's realtime runs at ``rate`` (Hz): runs that kept the rotor up, the p99s; the
+    table row of the median run."""
+    name, khz = REAL_RIG[rate].name, f"{rate / 1000:g} kHz"
+    median = sorted(runs, key=lambda r: r["p99_us"])[len(runs) // 2]
+    up = sum(not r["touchdown"] for r in runs)
+    record(f"realtime {khz} real rig ({name}): runs that kept the rotor off its touchdown bearings", up,
+           f"of {len(runs)}", goal=f"{len(runs)}",
+           note="; ".join(f"run {i + 1}: {r['touchdown']}" for i, r in enumerate(runs) if r["touchdown"]))  # fmt: skip
+    record(f"realtime {khz} period error p99, controller, real rig ({name})", [r["p99_us"] for r in runs], "us",
+           goal="< 100", note=f"median run: {median['missed_deadlines']} missed deadlines, "
+           f"{median['samples_lost']} samples lost")  # fmt: skip
+    record(f"realtime {khz} period error p99, plant, real rig ({name})", [r["plant_p99_us"] for r in runs], "us",
+           goal="< 100", note=f"median run: {median['plant_missed_deadlines']} missed deadlines")  # fmt: skip
+    return (f"realtime {khz}, real rig ({name}), median run: controller, plant",
+            f"{median['p50_us']:.0f}/{median['p99_us']:.0f}/{median['max_us']:.0f}",
+            f"plant {median['plant_p50_us']:.0f}/{median['plant_p99_us']:.0f}/{median['plant_max_us']:.0f}; "
+            f"{median['missed_deadlines']} + {median['plant_missed_deadlines']} missed deadlines; "
+            f"{median['samples_lost']} samples lost; {'; '.join(median['errors']) or 'run OK'}")  # fmt: skip
 
 
 def cpu_per_step(runs: int = CPU_RUNS) -> list[dict]:
@@ -142,9 +164,8 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         for path in paths:
             paths[path].append(pingpong(round_trips, path))
     timer, sample, timer2 = realtime("timer"), realtime("sample"), realtime("timer", 2000)
-    # the LQG's delay is exact only when each sample is answered; several runs: a stall may drop the rotor
-    rigs2 = [realtime("sample", 2000, real_rig=True) for _ in range(REAL_RIG_RUNS)]
-    rig2 = sorted(rigs2, key=lambda r: r["p99_us"])[len(rigs2) // 2]  # the median run's details
+    # the LQGs' delay is exact only when each sample is answered; several runs: a stall may drop the rotor
+    rigs = {rate: [realtime("sample", rate, real_rig=True) for _ in range(REAL_RIG_RUNS)] for rate in REAL_RIG}
     cpu = cpu_per_step()
     base = 0.5 * (pp1 + pp2)
     normal = statistics.median(r["steps_per_s"] for r in runs[0])
@@ -175,7 +196,8 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
         "realtime_1khz_timer": timer,
         "realtime_1khz_sample": sample,
         "realtime_2khz_timer": timer2,
-        "realtime_2khz_real_rig": rigs2,
+        "realtime_2khz_real_rig": rigs[2000],
+        "realtime_1khz_real_rig": rigs[1000],
         "realtime_goal_met": timers_p99 < GOAL_P99_US,
         "cpu_us_per_step": [c["us_per_step"] for c in cpu],
         "pingpong_cpu_us_per_round_trip": {side: [d[f"{side}_cpu_us"] for d in (d1, d2) if f"{side}_cpu_us" in d]
@@ -239,22 +261,8 @@ def main(duration: float = 2.0, round_trips: int = 5000, repeats: int = 3) -> di
                  f"{timer2['p50_us']:.0f}/{timer2['p99_us']:.0f}/{timer2['max_us']:.0f}",
                  f"plant {timer2['plant_p50_us']:.0f}/{timer2['plant_p99_us']:.0f}/{timer2['plant_max_us']:.0f}; "
                  f"{timer2['missed_deadlines']} + {timer2['plant_missed_deadlines']} missed deadlines"))  # fmt: skip
-    up = sum(not r["touchdown"] for r in rigs2)
-    record("realtime 2 kHz real rig (seed_rotor_2khz_lqg.yaml): runs that kept the rotor off its touchdown bearings",
-           up, f"of {len(rigs2)}", goal=f"{len(rigs2)}",
-           note="; ".join(f"run {i + 1}: {r['touchdown']}" for i, r in enumerate(rigs2) if r["touchdown"]))  # fmt: skip
-    record("realtime 2 kHz period error p99, controller, real rig (seed_rotor_2khz_lqg.yaml)",
-           [r["p99_us"] for r in rigs2], "us", goal="< 100",
-           note=f"median run: {rig2['missed_deadlines']} missed deadlines, "
-           f"{rig2['samples_lost']} samples lost")  # fmt: skip
-    record("realtime 2 kHz period error p99, plant, real rig (seed_rotor_2khz_lqg.yaml)",
-           [r["plant_p99_us"] for r in rigs2], "us", goal="< 100",
-           note=f"median run: {rig2['plant_missed_deadlines']} missed deadlines")  # fmt: skip
-    rows.append(("realtime 2 kHz, real rig (LQG, one sample of delay), median run: controller, plant",
-                 f"{rig2['p50_us']:.0f}/{rig2['p99_us']:.0f}/{rig2['max_us']:.0f}",
-                 f"plant {rig2['plant_p50_us']:.0f}/{rig2['plant_p99_us']:.0f}/{rig2['plant_max_us']:.0f}; "
-                 f"{rig2['missed_deadlines']} + {rig2['plant_missed_deadlines']} missed deadlines; "
-                 f"{rig2['samples_lost']} samples lost; {'; '.join(rig2['errors']) or 'run OK'}"))  # fmt: skip
+    for rate, runs_at in rigs.items():
+        rows.append(record_real_rig(rate, runs_at))
     for proc, goal in CPU_NODES.items():
         total = [sum(c["us_per_step"][proc].values()) for c in cpu]
         main_thread = [c["us_per_step"][proc]["main"] for c in cpu]
