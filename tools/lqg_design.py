@@ -8,7 +8,8 @@ loop at rest from 0 to max_speed_rpm (every 500 rpm) on the nominal plant and on
 sensor filter 20 % slower, a quarter less shaft damping); then its delay margin at 0 and max_speed_rpm
 (amb_dynamics.delay_margin).  The weights' defaults are those of config/seed_rotor_2khz_lqg.yaml; the file is
 written only once the design succeeded (to a temporary file, then renamed).  ``--rate`` and ``--delay-samples``
-design for another loop (``--out`` elsewhere).
+design for another loop (``--out`` elsewhere); ``--increment-weight`` (no delay) weighs the current's increment per
+sample (config/seed_rotor_1khz_lqg.yaml's command line is in its first line).
 """
 
 from __future__ import annotations

@@ -246,7 +246,7 @@ def run(args, cfg, lock) -> int:
         "duration_s": args.duration,
         "rate_hz": load_config(args.config, args.set).controller.rate_hz,
         "run_wall_s": round(time.monotonic() - t0, 3),
-        "preflight": getattr(args, "preflight", ""),
+        "preflight": getattr(args, "preflight", ""),  # amb-rig sensitivity calls run() without the preflight
         "log_dir": str(log_dir),
         "interrupted": interrupted.signum is not None,
         "discovery": os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "")
