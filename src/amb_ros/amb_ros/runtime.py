@@ -27,7 +27,6 @@ EXIT_OK = 0
 EXIT_USAGE = 2  # bad parameter, config or environment
 EXIT_FAILED = 3  # the run could not go on (peer gone, state diverged)
 TEARDOWN_TIMEOUT_S = 5.0  # < amb-rig's SIGINT wait (8 s)
-EXIT_TIMEOUT_S = 5  # s (whole seconds: signal.alarm) for the exit handlers after the teardown
 
 
 class StopFlag:
@@ -120,17 +119,16 @@ def _exit_now(name: str, code: int) -> None:
 
 
 def exit_process(code: int) -> NoReturn:
-    """End a node's process with ``code`` after :func:`run_node`, within EXIT_TIMEOUT_S.
+    """End a node's process with ``code`` after :func:`run_node`: flush the output and leave at once.
 
-    The interpreter's and the C++ libraries' exit handlers still run: Fast DDS deletes the participant there and
-    tells the peers that its endpoints are gone (a writer waiting for this reader's acknowledgements stops
-    waiting; without it the peers keep them for the lease duration).  But that destructor once hung with a core
-    busy for minutes, in a plant whose amb-rig had been SIGKILLed, holding the domain's run lock so that every
-    later run on that domain waited for it and failed.  A Python thread cannot end a process that is past
-    finalisation, so a kernel alarm does: SIGALRM (default action: terminate) after EXIT_TIMEOUT_S."""
+    The node's DDS work is over by now: :func:`teardown` destroyed the node and shut rclpy down, and the shutdown
+    deletes the Fast DDS participant (its shared-memory segments are unmapped and the peers are told that its
+    endpoints are gone; tests/test_runtime_teardown.py checks both).  What the exit handlers would still do is
+    free memory and destroy the C++ libraries' static objects, and that is where the processes failed: a
+    destructor hung with a core busy for minutes (in a plant whose amb-rig had been SIGKILLed, holding the
+    domain's run lock), and glibc's heap check aborted a plant after its final report in a full test run (no
+    Python stack: faulthandler is off by then), which failed a run that had finished.  ``os._exit`` skips them."""
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()
-    signal.signal(signal.SIGALRM, signal.SIG_DFL)
-    signal.alarm(EXIT_TIMEOUT_S)
-    sys.exit(code)
+    os._exit(code)
