@@ -71,32 +71,26 @@ rt.exit_process(3)
 """
 
 LEAVING = """
-import time
+import sys, time
 import rclpy
-from rclpy.context import Context
 from std_msgs.msg import String
 import amb_ros.runtime as rt
 from amb_ros.fastdds import init_rclpy
-
-def participants():  # Fast DDS maps one shared-memory segment per participant (besides its port segments)
-    return {line.split()[-1] for line in open("/proc/self/maps") if "/dev/shm/fastrtps_" in line
-            and "_port" not in line}
+from amb_ros.loop import Waiter
+from amb_ros.node_base import RigNode
 
 init_rclpy()
-node = rclpy.create_node("leaving")
-node.create_publisher(String, "teardown_probe", 10)
-observer_ctx = Context()
-init_rclpy(context=observer_ctx)
-observer = rclpy.create_node("observer", context=observer_ctx)
-deadline = time.monotonic() + 10
-while observer.count_publishers("/teardown_probe") < 1 and time.monotonic() < deadline:
-    time.sleep(0.01)
-seen, before = observer.count_publishers("/teardown_probe"), len(participants())
+node = RigNode("leaving", rt.StopFlag(), [])  # as a loop's node holds its input: a wait set and a match watch
+sub = node.create_subscription(String, "teardown_probe", lambda msg: None, 10, raw=True)
+node.waiter = Waiter(node, [sub])
+node.matches.watch(sub)
+deadline = time.monotonic() + 20
+while node.count_publishers("/teardown_probe") < 1 and time.monotonic() < deadline:
+    node.waiter.wait(0.01)
+    node.waiter.serve(force=True)
 rt.teardown("leaving", node, 0, rclpy)
-t0 = time.monotonic()
-while observer.count_publishers("/teardown_probe") > 0 and time.monotonic() < t0 + 10:
-    time.sleep(0.01)
-print(seen, before, len(participants()), observer.count_publishers("/teardown_probe"), time.monotonic() - t0)
+print("torn down", flush=True)
+time.sleep(float(sys.argv[1]))  # still alive: only the teardown can have told the peers
 rt.exit_process(4)
 """
 
@@ -109,14 +103,31 @@ def test_exit_process_leaves_with_the_node_code_and_skips_the_exit_handlers():
     assert time.monotonic() - t0 < 20  # not the 60 s of the hanging handler
 
 
-def test_teardown_deletes_the_participant_before_the_exit():
-    """Skipping the exit handlers loses nothing: after :func:`teardown` the node's participant is gone (its
-    shared-memory segment unmapped) and a peer no longer sees its publisher, well before any lease would expire."""
-    res = subprocess.run([sys.executable, "-c", LEAVING], capture_output=True, text=True, timeout=60)
-    assert res.returncode == 4, res.stderr
-    seen, before, after, left, wait_s = res.stdout.split()
-    assert (int(seen), int(before), int(after), int(left)) == (1, 2, 1, 0)
-    assert float(wait_s) < 2.0  # Fast DDS's default lease is 20 s: a participant left behind would show
+def test_teardown_tells_the_peers_before_the_exit():
+    """Skipping the exit handlers loses nothing: right after :func:`teardown`, with the process still alive, a
+    peer's publisher no longer matches the node's subscription, although the node waited on it in its wait set
+    and watched its match status (both hold the subscription unless released: the participant then lived on
+    until the exit handlers, and with os._exit the peers would keep it for the lease duration, 20 s)."""
+    from std_msgs.msg import String
+
+    from helpers import ros_node
+
+    hold_s = 8.0
+    with ros_node("teardown_observer") as (node, _):
+        pub = node.create_publisher(String, "teardown_probe", 10)
+        proc = subprocess.Popen([sys.executable, "-c", LEAVING, str(hold_s)], stdout=subprocess.PIPE, text=True)
+        try:
+            line = proc.stdout.readline()
+            t0 = time.monotonic()
+            while pub.get_subscription_count() > 0 and time.monotonic() < t0 + hold_s:
+                time.sleep(0.005)
+            left_after = time.monotonic() - t0
+            assert line.strip() == "torn down" and proc.poll() is None  # the process was still there
+            assert pub.get_subscription_count() == 0 and left_after < 2.0, left_after
+            assert proc.wait(30) == 4
+        finally:
+            proc.kill()
+            proc.wait()
 
 
 def test_every_node_main_ends_through_exit_process():

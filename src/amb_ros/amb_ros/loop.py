@@ -59,8 +59,15 @@ class Waiter:
                 matches.poll()
 
     def close(self) -> None:
+        """Release the node: the executor's hold, and the wait set's references to the subscriptions it last
+        waited on (until destroyed they keep the subscriptions, the node and its DDS participant alive)."""
+        if self._ws is None:
+            return
         self._executor.remove_node(self.node)
         self._executor.shutdown(timeout_sec=0.1)
+        self._ws.clear_entities()
+        self._ws.destroy_when_not_in_use()
+        self._ws = None
 
 
 class Ticker:

@@ -71,6 +71,13 @@ class PublisherMatches:
             if name not in self.names[topic]:
                 self.names[topic].append(name)
 
+    def close(self) -> None:
+        """Destroy the event handles: each holds its subscription (and through it the node and its DDS
+        participant) alive past the node's destruction.  The counts stay readable."""
+        for event in self._events.values():
+            event.destroy_when_not_in_use()
+        self._events = {}
+
     def foreign(self, topic: str) -> int:
         """Publishers of ``topic`` matched beyond the expected ones."""
         return max(0, self.total.get(topic, 0) - self.expected.get(topic, 0))

@@ -118,6 +118,17 @@ class RigNode(Node):
         if self.p["rt_priority"] > 0:
             self.scheduling = set_realtime_priority(self.p["rt_priority"])
 
+    def destroy_node(self) -> None:
+        """Release first what rclpy does not track: the loop's wait set (it holds the subscriptions it last waited
+        on) and the match-status event handles.  Each keeps its subscription, the node and the node's DDS
+        participant alive past the shutdown, which amb_ros.runtime.exit_process relies on to delete the
+        participant (tests/test_runtime_teardown.py)."""
+        waiter = getattr(self, "waiter", None)
+        if waiter is not None:
+            waiter.close()
+        self.matches.close()
+        super().destroy_node()
+
     def deliver_pending(self, *pubs, timeout_s: float = ACK_TIMEOUT_S) -> None:
         """Before the node exits: wait (``timeout_s`` in all) until every reliable reader has acknowledged the
         last samples of ``pubs`` (None entries skipped).  A slow reader (recorder, monitor) still takes samples
