@@ -8,6 +8,8 @@ import subprocess
 import sys
 import time
 
+import pytest
+
 HANGING = """
 import time
 import amb_ros.runtime as rt
@@ -103,6 +105,7 @@ def test_exit_process_leaves_with_the_node_code_and_skips_the_exit_handlers():
     assert time.monotonic() - t0 < 20  # not the 60 s of the hanging handler
 
 
+@pytest.mark.ros
 def test_teardown_tells_the_peers_before_the_exit():
     """Skipping the exit handlers loses nothing: right after :func:`teardown`, with the process still alive, a
     peer's publisher no longer matches the node's subscription, although the node waited on it in its wait set

@@ -121,13 +121,14 @@ def _exit_now(name: str, code: int) -> None:
 def exit_process(code: int) -> NoReturn:
     """End a node's process with ``code`` after :func:`run_node`: flush the output and leave at once.
 
-    The node's DDS work is over by now: :func:`teardown` destroyed the node and shut rclpy down, and the shutdown
-    deletes the Fast DDS participant (its shared-memory segments are unmapped and the peers are told that its
-    endpoints are gone; tests/test_runtime_teardown.py checks both).  What the exit handlers would still do is
-    free memory and destroy the C++ libraries' static objects, and that is where the processes failed: a
-    destructor hung with a core busy for minutes (in a plant whose amb-rig had been SIGKILLed, holding the
-    domain's run lock), and glibc's heap check aborted a plant after its final report in a full test run (no
-    Python stack: faulthandler is off by then), which failed a run that had finished.  ``os._exit`` skips them."""
+    The node's DDS work is over by now: :func:`teardown` destroyed the node (``RigNode.destroy_node`` first
+    releases what holds its subscriptions) and shut rclpy down, which deletes the Fast DDS participant and tells
+    the peers that its endpoints are gone (tests/test_runtime_teardown.py checks it from another process).  What
+    the exit handlers would still do is free memory and destroy the C++ libraries' static objects, and that is
+    where the processes failed: a destructor hung with a core busy for minutes (in a plant whose amb-rig had been
+    SIGKILLed, holding the domain's run lock), and glibc's heap check aborted a plant after its final report in a
+    full test run (no Python stack: faulthandler is off by then), which failed a run that had finished.
+    ``os._exit`` skips them."""
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()
