@@ -126,6 +126,5 @@ def lqg_controller(model: StructuralModel, cfg: RotorConfig, w: LqgWeights) -> S
     update = np.eye(na) - M @ Ha
     out = -L  # the current from xa_k|k: -L xa, or with increments i_k-1 - L xa (i_k-1 is the controller's own)
     if increment:
-        out = out.copy()
         out[:, n : n + m] += np.eye(m)
     return StateSpace(closed @ update, closed @ M, out @ update, out @ M, Ts)
